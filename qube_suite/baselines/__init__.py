@@ -1,0 +1,25 @@
+"""Controllers derived from the Qube model: LQR balance and sampling MPC swing-up.
+
+    from qube_suite import baselines
+    controller = baselines.make("mpc", control_frequency=250.0, voltage_limit=3.0)
+    voltage = controller(observation)
+"""
+
+from __future__ import annotations
+
+from qube_suite.baselines.base import Controller, split_observation
+from qube_suite.baselines.lqr import BalanceLQR, lqr_gain
+from qube_suite.baselines.mpc import SamplingMPC
+
+CONTROLLERS: dict[str, type[Controller]] = {cls.name: cls for cls in (BalanceLQR, SamplingMPC)}
+"""Controller name -> class."""
+
+
+def make(name: str, **kwargs) -> Controller:
+    """The controller called `name`, built with `kwargs`; ValueError lists valid names."""
+    if name not in CONTROLLERS:
+        raise ValueError(f"unknown controller {name!r}; valid controllers: {', '.join(CONTROLLERS)}")
+    return CONTROLLERS[name](**kwargs)
+
+
+__all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "SamplingMPC", "lqr_gain", "make", "split_observation"]

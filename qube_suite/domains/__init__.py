@@ -1,0 +1,1 @@
+"""Qube domains: `qube` (MuJoCo simulation). The interface they share is in `interface`."""

@@ -1,0 +1,56 @@
+"""The domain interface: everything a task may ask of a Qube, simulated or real.
+
+Tasks are written against `QubePhysics` only, so the same task runs on the MuJoCo
+domain (`qube`) and on the hardware domain (`qube_hardware`). Angles are in
+radians, wrapped to (-pi, pi]; alpha = 0 is the pendulum upright, +-pi hanging.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Protocol
+
+import numpy as np
+
+
+class QubePhysics(Protocol):
+    """What a Qube domain provides to tasks and environments."""
+
+    def arm_angle(self) -> float:
+        """Arm angle theta (rad), 0 = centred at the front."""
+
+    def pendulum_angle(self) -> float:
+        """Pendulum angle alpha (rad), 0 = upright."""
+
+    def arm_velocity(self) -> float:
+        """d theta / dt (rad/s): exact in simulation, estimated on hardware."""
+
+    def pendulum_velocity(self) -> float:
+        """d alpha / dt (rad/s): exact in simulation, estimated on hardware."""
+
+    def qube_state(self) -> np.ndarray:
+        """[theta, alpha, dtheta, dalpha] as a new float64 array."""
+
+    def voltage(self) -> float:
+        """Motor voltage (V) applied since the last `set_voltage`."""
+
+    def set_voltage(self, volts: float) -> None:
+        """Apply a motor voltage (V); callers have validated and limited it."""
+
+    def set_led(self, rgb: Sequence[float]) -> None:
+        """Show an (r, g, b) colour, each in [0, 1], on the status LED."""
+
+    def reset_to(self, state: Sequence[float]) -> None:
+        """Start an episode from [theta, alpha, dtheta, dalpha].
+
+        Set exactly in simulation; approached by reset controllers on hardware.
+        """
+
+    def time(self) -> float:
+        """Time since the episode started (s)."""
+
+    def timestep(self) -> float:
+        """Interval of one `step` (s)."""
+
+    def step(self, nstep: int = 1) -> None:
+        """Advance by `nstep` timesteps with the voltage held."""

@@ -1,0 +1,94 @@
+"""The dm_env environment that runs a Qube task on a Qube domain."""
+
+from __future__ import annotations
+
+import math
+
+import dm_env
+from dm_control.rl import control
+
+DEFAULT_CONTROL_FREQUENCY = 250.0
+"""Control steps per second (Hz)."""
+
+DEFAULT_TIME_LIMIT = 8.192
+"""Episode length (s): 2048 steps at 250 Hz."""
+
+
+def reward_colour(reward: float) -> tuple[float, float, float]:
+    """LED colour for a reward in [0, 1]: red at 0, green at 1."""
+    reward = min(max(reward, 0.0), 1.0)
+    return 1.0 - reward, reward, 0.0
+
+
+class Environment(control.Environment):
+    """A Qube task on a Qube domain, as a `dm_env.Environment`.
+
+    Like dm_control's `control.Environment` (and an instance of it, so tools made
+    for dm_control accept it), with the Qube's episode rules:
+
+    * `step(action)` validates the action before anything moves: a bad action
+      raises ValueError and leaves the environment as it was;
+    * the episode terminates (discount 0) when the task's safe set is left, and is
+      truncated (discount 1) after `time_limit` seconds of control steps;
+    * the LED shows each step's reward (green high, red low).
+
+    Args:
+        physics: a Qube domain (`qube_suite.domains.interface.QubePhysics`) whose
+            timestep divides the control period.
+        task: a `qube_suite.tasks.QubeTask`.
+        control_frequency: control steps per second (Hz).
+        time_limit: episode length (s).
+    """
+
+    def __init__(self, physics, task, control_frequency: float = DEFAULT_CONTROL_FREQUENCY,
+                 time_limit: float = DEFAULT_TIME_LIMIT):
+        if not (isinstance(time_limit, (int, float)) and 0.0 < time_limit < math.inf):
+            raise ValueError(f"time_limit must be a positive number of seconds, got {time_limit!r}")
+        super().__init__(physics, task, control_timestep=1.0 / control_frequency, legacy_step=False)
+        self._control_frequency = float(control_frequency)
+        self._episode_steps = max(1, round(time_limit * control_frequency))
+
+    @property
+    def control_frequency(self) -> float:
+        """Control steps per second (Hz)."""
+        return self._control_frequency
+
+    @property
+    def episode_steps(self) -> int:
+        """Control steps in a full-length episode."""
+        return self._episode_steps
+
+    @property
+    def step_count(self) -> int:
+        """Control steps taken in the current episode."""
+        return self._step_count
+
+    def reset(self) -> dm_env.TimeStep:
+        """Start a new episode and return its first `TimeStep`."""
+        self._reset_next_step = False
+        self._step_count = 0
+        with self._physics.reset_context():
+            self._task.initialize_episode(self._physics)
+        self._physics.set_led(reward_colour(self._task.get_reward(self._physics)))
+        return dm_env.restart(self._task.get_observation(self._physics))
+
+    def step(self, action) -> dm_env.TimeStep:
+        """Apply `action` for one control period and return the resulting `TimeStep`."""
+        if self._reset_next_step:
+            return self.reset()
+        physics, task = self._physics, self._task
+        task.before_step(action, physics)
+        physics.step(self._n_sub_steps)
+        task.after_step(physics)
+        reward = task.get_reward(physics)
+        physics.set_led(reward_colour(reward))
+        observation = task.get_observation(physics)
+        self._step_count += 1
+
+        discount = task.get_termination(physics)
+        if discount is None and self._step_count >= self._episode_steps:
+            discount = 1.0
+        if discount is None:
+            return dm_env.TimeStep(dm_env.StepType.MID, reward, 1.0, observation)
+        self._reset_next_step = True
+        return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, observation)

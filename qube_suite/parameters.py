@@ -1,0 +1,99 @@
+"""Physical parameters of the Qube-Servo 2 rotary pendulum: the one table of nominal values.
+
+Nominal values are Quanser's published Qube-Servo 2 rotary-pendulum model
+(motor, arm and pendulum data of the Qube-Servo 2 user manual and the
+rotary-pendulum workbook's parameter file), except where a note says otherwise.
+`qube_suite/assets/qube.xml` carries the same numbers so that it can be used on its
+own; the tests keep the two equal.
+
+Viscous damping: published values disagree by two orders of magnitude (arm
+1.5e-3 to 5e-6, pendulum 5e-4 to 1e-6 N m s/rad). Quanser's 1.5e-3 on the arm
+would make the motor's steady speed gain kt / (Rm Dr + kt km) = 2.9 rad/s/V,
+against 1/km = 24 rad/s/V for the nearly undamped motor that the Qube's own
+speed-step experiments show; 5e-4 on the pendulum would stop a free swing within
+about a second. We use the values identified on a real Qube by the TU Darmstadt
+`quanser_robots` / SimuRLacra projects (arm 5e-6, pendulum 1e-6): there the
+motor's back-EMF (kt km / Rm = 2.1e-4) dominates the arm's damping, as on the
+hardware.
+
+The last three entries are accuracy options that are off (zero) in the nominal
+model: Coulomb friction on each joint and the spring of the encoder cable on the
+arm. MuJoCo represents them natively (joint `frictionloss` and `stiffness`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+
+
+@dataclasses.dataclass(frozen=True)
+class Parameter:
+    """One named physical parameter."""
+
+    name: str
+    symbol: str
+    nominal: float
+    unit: str
+    description: str
+
+
+_TABLE = (
+    Parameter("motor_resistance", "Rm", 8.4, "ohm", "motor terminal resistance"),
+    Parameter("motor_torque_constant", "kt", 0.042, "N m/A", "motor current-torque constant"),
+    Parameter("motor_back_emf", "km", 0.042, "V s/rad", "motor back-EMF constant"),
+    Parameter("rotor_inertia", "Jm", 4.0e-6, "kg m^2", "motor rotor inertia (joint armature)"),
+    Parameter("motor_inductance", "Lm", 1.16e-3, "H", "motor inductance (hardware plant only; "
+              "its 0.14 ms time constant is far below the control period)"),
+    Parameter("arm_mass", "mr", 0.095, "kg", "rotary arm mass"),
+    Parameter("arm_length", "Lr", 0.085, "m", "rotary arm length, motor axis to pendulum pivot"),
+    Parameter("arm_damping", "Dr", 5.0e-6, "N m s/rad", "viscous damping of the arm joint"),
+    Parameter("pendulum_mass", "mp", 0.024, "kg", "pendulum mass"),
+    Parameter("pendulum_length", "Lp", 0.129, "m", "pendulum length (uniform rod pivoting at one end)"),
+    Parameter("pendulum_damping", "Dp", 1.0e-6, "N m s/rad", "viscous damping of the pendulum joint"),
+    Parameter("gravity", "g", 9.81, "m/s^2", "gravitational acceleration"),
+    Parameter("arm_friction", "Fr", 0.0, "N m", "Coulomb friction torque on the arm (accuracy option)"),
+    Parameter("pendulum_friction", "Fp", 0.0, "N m", "Coulomb friction torque on the pendulum "
+              "(accuracy option)"),
+    Parameter("cable_stiffness", "kc", 0.0, "N m/rad", "spring of the encoder cable on the arm, "
+              "towards theta = 0 (accuracy option)"),
+)
+
+PARAMETERS: types.MappingProxyType[str, Parameter] = types.MappingProxyType({p.name: p for p in _TABLE})
+"""Every parameter by long name."""
+
+NOMINAL: types.MappingProxyType[str, float] = types.MappingProxyType({p.name: p.nominal for p in _TABLE})
+"""Nominal value of every parameter by long name."""
+
+PENDULUM_ROD_RADIUS = 0.0045
+"""Radius of the pendulum rod (m); gives its small inertia about its own axis."""
+
+ENCODER_COUNTS_PER_REVOLUTION = 2048
+"""Both encoders: 512 lines in quadrature."""
+
+
+def arm_inertia(arm_mass: float, arm_length: float) -> float:
+    """Arm inertia about the motor axis, Jr = mr Lr^2 / 12 (Quanser's convention), kg m^2."""
+    return arm_mass * arm_length**2 / 12.0
+
+
+def pendulum_inertia(pendulum_mass: float, pendulum_length: float) -> float:
+    """Pendulum inertia about its centre, transverse to the rod, Jp = mp Lp^2 / 12, kg m^2."""
+    return pendulum_mass * pendulum_length**2 / 12.0
+
+
+def resolve(overrides: dict[str, float] | None = None) -> dict[str, float]:
+    """Nominal parameters updated by `overrides`; a name that is not a parameter is a ValueError."""
+    values = dict(NOMINAL)
+    for name, value in (overrides or {}).items():
+        if name not in PARAMETERS:
+            raise ValueError(f"unknown parameter {name!r}; valid names: {', '.join(PARAMETERS)}")
+        value = float(value)
+        if not value == value or value in (float("inf"), float("-inf")):
+            raise ValueError(f"parameter {name!r} must be finite, got {value}")
+        minimum_is_zero = PARAMETERS[name].nominal == 0.0 or name.endswith("damping")
+        if value < 0.0 or (value == 0.0 and not minimum_is_zero):
+            raise ValueError(f"parameter {name!r} must be {'>= 0' if minimum_is_zero else '> 0'}, "
+                             f"got {value}")
+        values[name] = value
+    return values

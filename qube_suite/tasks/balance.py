@@ -1,0 +1,90 @@
+"""Balance: keep the pendulum upright from a start near upright."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from qube_suite.tasks.goal import GoalTask
+from qube_suite.tasks.registry import SUITE
+
+PENDULUM_LIMIT = math.radians(20.0)
+"""The pendulum leaving +-20 degrees of upright ends the episode."""
+
+START_ANGLE_STD = 0.03
+"""Start: theta and alpha ~ N(0, 0.03 rad) ..."""
+START_VELOCITY_STD = 0.05
+"""... dtheta and dalpha ~ N(0, 0.05 rad/s), all truncated at 3 standard deviations."""
+
+
+class Balance(GoalTask):
+    """Keep the pendulum balanced upright, arm centred.
+
+    ## Action
+    Motor voltage (V), shape (1,), in [-voltage_limit, voltage_limit] (3 V by
+    default); larger values are clipped, NaN/inf or a wrong shape raise ValueError.
+
+    ## Observation
+    `state` = [theta, alpha, dtheta, dalpha] (rad, rad/s), alpha = 0 upright; or
+    the `trig` layout. See `Swingup`.
+
+    ## Reward
+    max(0, 1 - (0.8 |alpha| + 0.2 |theta|) / pi) per step. Sparse: 1 when
+    |alpha| <= 10 and |theta| <= 20 degrees, else 0.
+
+    ## Start
+    Near upright: theta, alpha ~ N(0, 0.03) rad, velocities ~ N(0, 0.05) rad/s,
+    truncated at 3 standard deviations.
+
+    ## Episode end
+    Terminates (discount 0) when |theta| > 90 degrees or |alpha| > 20 degrees;
+    truncated (discount 1) at the time limit (2048 steps at 250 Hz).
+
+    ## Arguments
+    `sparse`, `voltage_limit`, `observation`, `random`.
+
+    ## Version history
+    v0: first release.
+    """
+
+    def initial_state(self) -> np.ndarray:
+        std = np.array([START_ANGLE_STD, START_ANGLE_STD, START_VELOCITY_STD, START_VELOCITY_STD])
+        return np.clip(self.random.normal(0.0, std), -3.0 * std, 3.0 * std)
+
+    def pendulum_error(self, physics) -> float:
+        return physics.pendulum_angle()
+
+    def in_safe_set(self, physics) -> bool:
+        return super().in_safe_set(physics) and abs(physics.pendulum_angle()) <= PENDULUM_LIMIT
+
+
+class BalanceFollow(Balance):
+    """Balance while the arm follows a moving target.
+
+    As `Balance`, with the arm's goal theta_target ~ U(-80, 80) degrees, redrawn
+    at random moments (about twice a second) and at every reset. The observation
+    adds `target` = [theta_target] (rad); the reward uses theta - theta_target.
+    """
+
+    follows_target = True
+
+
+@SUITE.add("benchmarking")
+def balance(**kwargs) -> Balance:
+    return Balance(**kwargs)
+
+
+@SUITE.add("sparse")
+def balance_sparse(**kwargs) -> Balance:
+    return Balance(sparse=True, **kwargs)
+
+
+@SUITE.add("benchmarking", "follow")
+def balance_follow(**kwargs) -> BalanceFollow:
+    return BalanceFollow(**kwargs)
+
+
+@SUITE.add("sparse", "follow")
+def balance_follow_sparse(**kwargs) -> BalanceFollow:
+    return BalanceFollow(sparse=True, **kwargs)

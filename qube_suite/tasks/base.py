@@ -1,0 +1,122 @@
+"""What every Qube task shares: the voltage action, the observation, the safe set.
+
+Tasks use only the domain interface (`qube_suite.domains.interface.QubePhysics`),
+so they run unchanged in simulation and on hardware.
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+from typing import Any
+
+import numpy as np
+from dm_control.suite import base
+from dm_env import specs
+
+DEFAULT_VOLTAGE_LIMIT = 3.0
+"""Default motor voltage limit (V): the smallest in [3, 10] V that allows a swing-up
+within the arm's +-90 degrees (3 V does; see docs/voltage_limit.md)."""
+
+MAX_VOLTAGE_LIMIT = 10.0
+"""Largest voltage limit a task accepts (V), the range of the model's motor."""
+
+ARM_LIMIT = math.radians(90.0)
+"""The arm leaving +-90 degrees ends the episode (the encoder cable)."""
+
+OBSERVATION_MODES = ("state", "trig")
+"""`state`: [theta, alpha, dtheta, dalpha]; `trig`: [cos theta, sin theta, cos alpha,
+sin alpha, dtheta, dalpha]."""
+
+
+def voltage_from_action(action: Any, limit: float) -> float:
+    """The motor voltage for `action`: one finite number, clipped to +-`limit` (V).
+
+    Accepts a 1-element array-like or a scalar. Anything else (wrong shape, NaN,
+    inf, non-numeric) raises ValueError.
+    """
+    if type(action) is not np.ndarray:
+        try:
+            action = np.asarray(action)
+        except Exception as error:  # ragged sequences and other oddities
+            raise ValueError(f"action must be one number (V), got {action!r}") from error
+    if action.shape not in ((1,), ()) or action.dtype.kind not in "fiu":
+        raise ValueError(f"action must be one number (V) of shape (1,), got {action!r} "
+                         f"with shape {action.shape} and dtype {action.dtype}")
+    volts = float(action.flat[0])
+    if not math.isfinite(volts):
+        raise ValueError(f"action must be finite, got {volts}")
+    return min(max(volts, -limit), limit)
+
+
+class QubeTask(base.Task):
+    """Base of the Qube tasks.
+
+    Args:
+        voltage_limit: largest motor voltage (V) the action can ask for; actions
+            beyond it are clipped. In (0, 10].
+        observation: "state" ([theta, alpha, dtheta, dalpha]) or "trig"
+            ([cos theta, sin theta, cos alpha, sin alpha, dtheta, dalpha]).
+        random: seed or `numpy.random.RandomState` for everything random in the task.
+    """
+
+    def __init__(self, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT, observation: str = "state",
+                 random: int | np.random.RandomState | None = None):
+        if not (isinstance(voltage_limit, (int, float)) and 0.0 < voltage_limit <= MAX_VOLTAGE_LIMIT):
+            raise ValueError(f"voltage_limit must be in (0, {MAX_VOLTAGE_LIMIT:g}] V, got {voltage_limit!r}")
+        if observation not in OBSERVATION_MODES:
+            raise ValueError(f"observation must be one of {OBSERVATION_MODES}, got {observation!r}")
+        super().__init__(random=random)
+        self._voltage_limit = float(voltage_limit)
+        self._trig = observation == "trig"
+        self._action_spec = specs.BoundedArray((1,), np.float64, -self._voltage_limit,
+                                               self._voltage_limit, name="voltage")
+
+    @property
+    def voltage_limit(self) -> float:
+        """Largest motor voltage (V)."""
+        return self._voltage_limit
+
+    # -- episode ----------------------------------------------------------------
+
+    def initialize_episode(self, physics) -> None:
+        """Start from a state drawn by `initial_state`."""
+        physics.reset_to(self.initial_state())
+
+    def initial_state(self) -> np.ndarray:
+        """[theta, alpha, dtheta, dalpha] to start an episode from, drawn from `self.random`."""
+        raise NotImplementedError
+
+    def before_step(self, action, physics) -> None:
+        """Validate and limit `action`, then apply it; a bad action raises and changes nothing."""
+        physics.set_voltage(voltage_from_action(action, self._voltage_limit))
+
+    def after_step(self, physics) -> None:
+        """Advance the task's own processes (none by default)."""
+
+    def in_safe_set(self, physics) -> bool:
+        """Whether the Qube may go on: the arm within +-90 degrees."""
+        return abs(physics.arm_angle()) <= ARM_LIMIT
+
+    def get_termination(self, physics) -> float | None:
+        """0.0 (terminal, discount 0) once the Qube leaves the safe set, else None."""
+        return None if self.in_safe_set(physics) else 0.0
+
+    # -- specs and observations ---------------------------------------------------
+
+    def action_spec(self, physics) -> specs.BoundedArray:
+        """Motor voltage (V), shape (1,), within +-voltage_limit."""
+        return self._action_spec
+
+    def observation_spec(self, physics) -> collections.OrderedDict:
+        return collections.OrderedDict(state=specs.Array((6 if self._trig else 4,), np.float64, name="state"))
+
+    def get_observation(self, physics) -> collections.OrderedDict:
+        theta, alpha = physics.arm_angle(), physics.pendulum_angle()
+        dtheta, dalpha = physics.arm_velocity(), physics.pendulum_velocity()
+        if self._trig:
+            state = np.array([math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha),
+                              dtheta, dalpha])
+        else:
+            state = np.array([theta, alpha, dtheta, dalpha])
+        return collections.OrderedDict(state=state)

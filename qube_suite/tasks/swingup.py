@@ -1,0 +1,87 @@
+"""Swing-up: from hanging, bring the pendulum upright and keep it there."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from qube_suite.tasks.goal import GoalTask
+from qube_suite.tasks.registry import SUITE
+
+START_NOISE = 0.05
+"""Start: angles (rad) and velocities (rad/s) uniform within +-0.05 of hanging at rest."""
+
+
+class Swingup(GoalTask):
+    """Swing the pendulum up from hanging and balance it, arm centred.
+
+    ## Action
+    Motor voltage (V), shape (1,), in [-voltage_limit, voltage_limit] (3 V by
+    default); larger values are clipped, NaN/inf or a wrong shape raise ValueError.
+
+    ## Observation
+    | key | index | value | unit | range |
+    |---|---|---|---|---|
+    | state | 0 | arm angle theta | rad | (-pi, pi], episode ends beyond +-pi/2 |
+    | state | 1 | pendulum angle alpha, 0 upright | rad | (-pi, pi] |
+    | state | 2 | arm velocity | rad/s | unbounded |
+    | state | 3 | pendulum velocity | rad/s | unbounded |
+    With `observation="trig"`, `state` is [cos theta, sin theta, cos alpha, sin
+    alpha, dtheta, dalpha].
+
+    ## Reward
+    max(0, 1 - (0.8 |alpha| + 0.2 |theta|) / pi) per step: 1 upright with the arm
+    centred, 0.2 hanging. Sparse: 1 when |alpha| <= 10 and |theta| <= 20 degrees,
+    else 0.
+
+    ## Start
+    Hanging at rest: theta, alpha - pi, dtheta, dalpha each uniform in +-0.05.
+
+    ## Episode end
+    Terminates (discount 0) when |theta| > 90 degrees; truncated (discount 1) at the
+    time limit (2048 steps at 250 Hz).
+
+    ## Arguments
+    `sparse`, `voltage_limit`, `observation`, `random` (see `GoalTask`, `QubeTask`).
+
+    ## Version history
+    v0: first release.
+    """
+
+    def initial_state(self) -> np.ndarray:
+        return self.random.uniform(-START_NOISE, START_NOISE, 4) + np.array([0.0, math.pi, 0.0, 0.0])
+
+    def pendulum_error(self, physics) -> float:
+        return physics.pendulum_angle()
+
+
+class SwingupFollow(Swingup):
+    """Swing up and balance while the arm follows a moving target.
+
+    As `Swingup`, with the arm's goal theta_target ~ U(-80, 80) degrees, redrawn
+    at random moments (about twice a second) and at every reset. The observation
+    adds `target` = [theta_target] (rad); the reward uses theta - theta_target.
+    """
+
+    follows_target = True
+
+
+@SUITE.add("benchmarking")
+def swingup(**kwargs) -> Swingup:
+    return Swingup(**kwargs)
+
+
+@SUITE.add("sparse")
+def swingup_sparse(**kwargs) -> Swingup:
+    return Swingup(sparse=True, **kwargs)
+
+
+@SUITE.add("benchmarking", "follow")
+def swingup_follow(**kwargs) -> SwingupFollow:
+    return SwingupFollow(**kwargs)
+
+
+@SUITE.add("sparse", "follow")
+def swingup_follow_sparse(**kwargs) -> SwingupFollow:
+    return SwingupFollow(sparse=True, **kwargs)

@@ -1,0 +1,160 @@
+"""Any qube_suite dm_env environment as a Gymnasium environment."""
+
+from __future__ import annotations
+
+import os
+import sys
+from typing import Any
+
+import gymnasium
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from qube_suite.environment import Environment
+
+RENDER_MODES = ("human", "rgb_array")
+DEFAULT_CAMERA = "front_oblique"
+
+
+def display_available() -> bool:
+    """Whether a window can be opened (MuJoCo's viewer aborts the process when it cannot)."""
+    if sys.platform != "linux":
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+class QubeEnv(gymnasium.Env):
+    """A Qube task with Gymnasium's API (obtain one with `to_gymnasium` or `gymnasium.make`).
+
+    ## Spaces
+    Action: Box(-voltage_limit, voltage_limit, (1,), float32), the motor voltage
+    (V); values beyond the limit are clipped, NaN/inf or a wrong shape raise
+    ValueError and leave the environment unchanged.
+    Observation: Box of float32, the dm_env observation flattened in key order:
+    [theta, alpha, dtheta, dalpha] (+ [theta_target] in follow tasks); angles in
+    (-pi, pi], alpha = 0 upright. With `observation="trig"`: [cos theta, sin theta,
+    cos alpha, sin alpha, dtheta, dalpha] (+ target).
+
+    ## Episode end
+    `terminated` when the task's safe set is left (arm beyond +-90 degrees, and in
+    balance tasks the pendulum beyond +-20 degrees); `truncated` at the time limit.
+    Stepping after either without `reset()` raises RuntimeError.
+
+    ## Info
+    `time` (s), `voltage` (V, as applied after clipping), `target` (rad, follow tasks).
+
+    ## Rendering
+    `render_mode="rgb_array"` returns frames from `camera` ("front_oblique",
+    "front" or "top") of `width` x `height`; `"human"` opens MuJoCo's viewer
+    (offered only where a display exists).
+    """
+
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 250}
+
+    def __init__(self, environment: Environment, render_mode: str | None = None,
+                 width: int = 640, height: int = 480, camera: str = DEFAULT_CAMERA):
+        if render_mode is not None and render_mode not in RENDER_MODES:
+            raise ValueError(f"render_mode must be one of {RENDER_MODES} or None, got {render_mode!r}")
+        if render_mode == "human" and not display_available():
+            raise ValueError("render_mode='human' needs a display (DISPLAY is not set); "
+                             "use render_mode='rgb_array' to get frames offscreen")
+        self.environment = environment
+        self.render_mode = render_mode
+        self._render_size = (int(height), int(width))
+        self._camera = camera
+        self._viewer = None
+        self._renderer = None
+        self._closed = False
+        self._episode_over = True
+        self.metadata = {
+            "render_modes": [mode for mode in RENDER_MODES if mode != "human" or display_available()],
+            "render_fps": int(round(environment.control_frequency)),
+        }
+
+        action = environment.action_spec()
+        self.action_space = spaces.Box(np.float32(np.min(action.minimum)), np.float32(np.max(action.maximum)),
+                                       shape=action.shape, dtype=np.float32)
+        lows, highs = [], []
+        for spec in environment.observation_spec().values():
+            low = getattr(spec, "minimum", -np.inf)
+            high = getattr(spec, "maximum", np.inf)
+            lows.append(np.broadcast_to(low, spec.shape))
+            highs.append(np.broadcast_to(high, spec.shape))
+        self.observation_space = spaces.Box(np.concatenate(lows).astype(np.float32),
+                                            np.concatenate(highs).astype(np.float32), dtype=np.float32)
+
+    @property
+    def task(self):
+        return self.environment.task
+
+    @property
+    def physics(self):
+        return self.environment.physics
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start an episode; `seed` reseeds the task's random state (same seed, same episode)."""
+        super().reset(seed=seed)
+        if seed is not None:
+            self.environment.task.random.seed(seed)
+        timestep = self.environment.reset()
+        self._episode_over = False
+        if self.render_mode == "human":
+            self.render()
+        return self._flatten(timestep.observation), self._info()
+
+    def step(self, action):
+        if self._episode_over:
+            raise RuntimeError("the episode has ended; call reset() before step()")
+        timestep = self.environment.step(action)
+        terminated = timestep.last() and timestep.discount == 0.0
+        truncated = timestep.last() and not terminated
+        self._episode_over = terminated or truncated
+        if self.render_mode == "human":
+            self.render()
+        observation = self._flatten(timestep.observation)
+        return observation, float(timestep.reward), terminated, truncated, self._info()
+
+    def render(self):
+        if self.render_mode == "rgb_array":
+            if self._renderer is None:
+                height, width = self._render_size
+                self._renderer = mujoco.Renderer(self.physics.model.ptr, height, width)
+            self._renderer.update_scene(self.physics.data.ptr, camera=self._camera)
+            return self._renderer.render()
+        if self.render_mode == "human":
+            if self._viewer is None:
+                from mujoco import viewer
+
+                self._viewer = viewer.launch_passive(self.physics.model.ptr, self.physics.data.ptr)
+            self._viewer.sync()
+        return None
+
+    def close(self):
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        if not self._closed:
+            self._closed = True
+            self.environment.close()
+            self.physics.free()
+
+    def _flatten(self, observation) -> np.ndarray:
+        return np.concatenate(list(observation.values())).astype(np.float32)
+
+    def _info(self) -> dict[str, float]:
+        info = {"time": float(self.physics.time()), "voltage": self.physics.voltage()}
+        if getattr(self.task, "follows_target", False):
+            info["target"] = self.task.target
+        return info
+
+
+def to_gymnasium(environment: Environment, render_mode: str | None = None, **render_kwargs) -> QubeEnv:
+    """Wrap a qube_suite dm_env `environment` as a Gymnasium environment.
+
+    `render_kwargs`: `width`, `height`, `camera`.
+    """
+    return QubeEnv(environment, render_mode=render_mode, **render_kwargs)

@@ -1,0 +1,82 @@
+"""Named physical parameters: one table, written into the compiled model in place."""
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from qube_suite import parameters
+from qube_suite.domains import qube
+
+MODEL_FIELDS = ("body_mass", "body_inertia", "body_pos", "body_ipos", "dof_damping", "dof_armature",
+                "dof_frictionloss", "jnt_stiffness", "actuator_gainprm", "actuator_biasprm",
+                "geom_pos", "geom_size")
+
+
+def test_xml_carries_the_nominal_table():
+    as_written = mujoco.MjModel.from_xml_path(str(qube.MODEL_PATH))
+    physics = qube.make_physics()
+    physics.set_parameters({})
+    for field in MODEL_FIELDS:
+        np.testing.assert_allclose(getattr(physics.model.ptr, field), getattr(as_written, field),
+                                   rtol=1e-8, atol=1e-12, err_msg=field)
+    np.testing.assert_allclose(physics.model.opt.gravity, as_written.opt.gravity)
+
+
+def test_nominal_values_are_quanser_published_model():
+    p = parameters.NOMINAL
+    assert (p["motor_resistance"], p["motor_torque_constant"], p["motor_back_emf"]) == (8.4, 0.042, 0.042)
+    assert (p["arm_mass"], p["arm_length"], p["pendulum_mass"], p["pendulum_length"]) == (
+        0.095, 0.085, 0.024, 0.129)
+    assert p["rotor_inertia"] == 4.0e-6 and p["motor_inductance"] == 1.16e-3 and p["gravity"] == 9.81
+    assert parameters.ENCODER_COUNTS_PER_REVOLUTION == 2048
+    assert parameters.arm_inertia(0.095, 0.085) == pytest.approx(0.095 * 0.085**2 / 12)
+
+
+def test_pendulum_length_moves_centre_of_mass_inertia_and_drawing(physics):
+    physics.set_parameters({"pendulum_length": 0.2})
+    model = physics.model
+    pendulum = physics.model.name2id("pendulum", "body")
+    rod = physics.model.name2id("pendulum", "geom")
+    assert model.body_ipos[pendulum][2] == pytest.approx(0.1)
+    assert model.body_inertia[pendulum][0] == pytest.approx(0.024 * 0.2**2 / 12)
+    assert model.geom_size[rod][1] == pytest.approx(0.1)
+    assert physics.parameters["pendulum_length"] == 0.2
+
+
+def test_arm_length_moves_the_pivot(physics):
+    physics.set_parameters({"arm_length": 0.1})
+    pendulum = physics.model.name2id("pendulum", "body")
+    np.testing.assert_allclose(physics.model.body_pos[pendulum], [0.0, -0.1, 0.0])
+    physics.reset_to([math.pi / 2, 0.0, 0.0, 0.0])
+    np.testing.assert_allclose(physics.data.xpos[pendulum][:2], [0.1, 0.0], atol=1e-12)
+
+
+def test_set_parameters_keeps_the_state(physics):
+    physics.reset_to([0.1, 2.0, 0.3, -0.4])
+    physics.set_parameters({"pendulum_mass": 0.03})
+    np.testing.assert_allclose(physics.qube_state(), [0.1, 2.0, 0.3, -0.4])
+
+
+def test_unknown_parameter_lists_valid_names_and_changes_nothing(physics):
+    before = physics.model.body_mass.copy()
+    with pytest.raises(ValueError, match="pendulum_mass") as error:
+        physics.set_parameters({"pendulum_mas": 0.03, "arm_mass": 0.2})
+    assert "unknown parameter 'pendulum_mas'" in str(error.value)
+    np.testing.assert_array_equal(physics.model.body_mass, before)
+
+
+@pytest.mark.parametrize("name, value", [("pendulum_mass", -0.1), ("arm_length", 0.0),
+                                         ("gravity", float("nan")), ("arm_damping", -1e-6),
+                                         ("motor_resistance", float("inf"))])
+def test_impossible_parameter_values_are_errors(physics, name, value):
+    with pytest.raises(ValueError, match=name):
+        physics.set_parameters({name: value})
+
+
+def test_accuracy_options_are_off_in_the_nominal_model(physics):
+    model = physics.model
+    assert not model.dof_frictionloss.any() and not model.jnt_stiffness.any()
+    physics.set_parameters({"arm_friction": 1e-3, "cable_stiffness": 2e-3})
+    assert model.dof_frictionloss[0] == 1e-3 and model.jnt_stiffness[0] == 2e-3

@@ -1,0 +1,44 @@
+"""The README's examples run, its set-up commands exist, and its parameter table is the package's."""
+
+import pathlib
+import re
+
+import pytest
+from conftest import OFFSCREEN_GL
+
+from qube_suite import parameters
+
+README = (pathlib.Path(__file__).resolve().parent.parent / "README.md").read_text()
+PYTHON_BLOCKS = re.findall(r"```python\n(.*?)```", README, re.S)
+
+
+def setup_command(marker):
+    match = re.search(rf"<!-- {marker} -->\n```bash\n(.*?)\n```", README, re.S)
+    assert match, f"README lacks the {marker}"
+    return match.group(1)
+
+
+def test_two_setup_commands():
+    assert "qube-suite demo" in setup_command("demo-command")
+    assert "pytest" in setup_command("test-command") and ".[test]" in setup_command("test-command")
+    assert len(re.findall(r"<!-- \w+-command -->", README)) == 2
+
+
+@pytest.mark.parametrize("index", range(len(PYTHON_BLOCKS)))
+def test_python_example_runs(index):
+    code = PYTHON_BLOCKS[index]
+    if "render" in code and not OFFSCREEN_GL:
+        pytest.skip("offscreen rendering needs OSMesa (apt-get install libosmesa6)")
+    exec(compile(code, f"README.md python block {index}", "exec"), {})
+
+
+def test_parameter_table_matches_the_package():
+    rows = re.findall(r"^\| `(\w+)`(?:, `(\w+)`)? \| [^|]+ \| ([^|]+) \|$", README, re.M)
+    documented = {}
+    for first, second, values in rows:
+        numbers = [float(n) for n in re.findall(r"[0-9.]+(?:e-?[0-9]+)?", values)]
+        for name, number in zip([first, second] if second else [first], numbers, strict=False):
+            documented[name] = number
+    assert set(documented) >= {"motor_resistance", "pendulum_length", "arm_damping", "gravity"}
+    for name, value in documented.items():
+        assert parameters.NOMINAL[name] == pytest.approx(value), name
