@@ -76,19 +76,29 @@ class Environment(control.Environment):
         """Apply `action` for one control period and return the resulting `TimeStep`."""
         if self._reset_next_step:
             return self.reset()
+        reward, discount = self.advance(action)
+        observation = self._task.get_observation(self._physics)
+        if discount is None:
+            return dm_env.TimeStep(dm_env.StepType.MID, reward, 1.0, observation)
+        return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, observation)
+
+    def advance(self, action) -> tuple[float, float | None]:
+        """One control period without building a `TimeStep`: the core that `step` and the
+        Gymnasium view share.
+
+        Returns the reward and the discount: None while the episode goes on, 0.0 when it
+        terminates, 1.0 when it is truncated; after either, the next `step` resets.
+        """
         physics, task = self._physics, self._task
         task.before_step(action, physics)
         physics.step(self._n_sub_steps)
         task.after_step(physics)
         reward = task.get_reward(physics)
         physics.set_led(reward_colour(reward))
-        observation = task.get_observation(physics)
         self._step_count += 1
-
         discount = task.get_termination(physics)
         if discount is None and self._step_count >= self._episode_steps:
             discount = 1.0
-        if discount is None:
-            return dm_env.TimeStep(dm_env.StepType.MID, reward, 1.0, observation)
-        self._reset_next_step = True
-        return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, observation)
+        if discount is not None:
+            self._reset_next_step = True
+        return reward, discount

@@ -22,6 +22,8 @@ def test_xml_carries_the_nominal_table():
         np.testing.assert_allclose(getattr(physics.model.ptr, field), getattr(as_written, field),
                                    rtol=1e-8, atol=1e-12, err_msg=field)
     np.testing.assert_allclose(physics.model.opt.gravity, as_written.opt.gravity)
+    assert as_written.opt.timestep == qube.MAX_TIMESTEP
+    assert as_written.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
 
 
 def test_nominal_values_are_quanser_published_model():
@@ -80,3 +82,36 @@ def test_accuracy_options_are_off_in_the_nominal_model(physics):
     assert not model.dof_frictionloss.any() and not model.jnt_stiffness.any()
     physics.set_parameters({"arm_friction": 1e-3, "cable_stiffness": 2e-3})
     assert model.dof_frictionloss[0] == 1e-3 and model.jnt_stiffness[0] == 2e-3
+
+
+def test_measurement_follows_direct_state_changes(physics):
+    physics.data.qpos[:] = [0.3, -2.0]
+    physics.forward()
+    assert physics.arm_angle() == pytest.approx(0.3) and physics.pendulum_angle() == pytest.approx(-2.0)
+    physics.data.qpos[0] = 2 * math.pi + 0.1  # angles are wrapped
+    physics.forward()
+    assert physics.arm_angle() == pytest.approx(0.1)
+
+
+def test_sensor_and_actuator_models_change_what_is_measured_and_applied(physics):
+    physics.reset_to([0.2, 1.0, 0.5, -0.5])
+    physics.set_sensor_model(lambda exact: tuple(round(x, 1) + 0.01 for x in exact))
+    assert physics.arm_angle() == pytest.approx(0.21) and physics.pendulum_velocity() == pytest.approx(-0.49)
+    np.testing.assert_allclose(physics.true_state(), [0.2, 1.0, 0.5, -0.5])
+    physics.set_actuator_model(lambda volts: 0.5 * volts)
+    physics.set_voltage(2.0)
+    assert physics.voltage() == 2.0 and physics.data.ctrl[0] == 1.0
+    physics.set_sensor_model(None)
+    physics.set_actuator_model(None)
+    physics.set_voltage(2.0)
+    assert physics.arm_angle() == pytest.approx(0.2) and physics.data.ctrl[0] == 2.0
+
+
+def test_constraint_stage_runs_only_with_friction(physics):
+    constraint = mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    assert physics.model.opt.disableflags & constraint
+    physics.set_parameters({"pendulum_friction": 1e-4})
+    assert not physics.model.opt.disableflags & constraint
+    physics.reset_to([0.0, 0.5, 0.0, 0.0])  # friction really acts: the pendulum comes to rest
+    physics.step(3000)
+    assert abs(physics.pendulum_velocity()) < 1e-3

@@ -33,12 +33,20 @@ MAX_CONTROL_FREQUENCY = 2000.0
 class Physics(dm_mujoco.Physics):
     """MuJoCo physics of the Qube with accessors that read like the Qube.
 
-    Implements `qube_suite.domains.interface.QubePhysics`.
+    Implements `qube_suite.domains.interface.QubePhysics`. The Qube's state is
+    measured once whenever the simulation moves (`step`, `reset_to`, `forward`)
+    and the accessors return that measurement: in the nominal model it is the
+    exact state with angles wrapped; a sensor model (`set_sensor_model`) can make
+    it imperfect, and an actuator model (`set_actuator_model`) can alter the
+    voltage the motor receives.
     """
+
+    _measurement_ready = False
 
     # -- construction -------------------------------------------------------------
 
     def _reload_from_data(self, data) -> None:
+        self._measurement_ready = False
         super()._reload_from_data(data)
         model = self.model.ptr
         self._model_ptr = model
@@ -63,6 +71,11 @@ class Physics(dm_mujoco.Physics):
         self._led_rgba = model.geom_rgba[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "led")]
         if not hasattr(self, "_parameters"):
             self._parameters = dict(params.NOMINAL)
+        self._sensor_model = None
+        self._actuator_model = None
+        self._voltage = float(self._ctrl[0])
+        self._measurement_ready = True
+        self._measure()
 
     def copy(self, share_model: bool = False) -> Physics:
         new = super().copy(share_model=share_model)
@@ -101,6 +114,11 @@ class Physics(dm_mujoco.Physics):
         m.dof_armature[self._arm_dof] = p["rotor_inertia"]
         m.dof_frictionloss[self._arm_dof] = p["arm_friction"]
         m.dof_frictionloss[self._pendulum_dof] = p["pendulum_friction"]
+        constraint = int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+        if p["arm_friction"] or p["pendulum_friction"]:  # Coulomb friction is a constraint in MuJoCo
+            m.opt.disableflags &= ~constraint
+        else:
+            m.opt.disableflags |= constraint
         m.jnt_stiffness[ids["arm_joint"]] = p["cable_stiffness"]
 
         motor = ids["motor"]
@@ -117,7 +135,7 @@ class Physics(dm_mujoco.Physics):
         m.geom_pos[ids["pendulum_geom"]] = (0.0, 0.0, p["pendulum_length"] / 2.0)
         m.geom_size[ids["pendulum_geom"], 1] = p["pendulum_length"] / 2.0
 
-        state = self.qube_state()
+        state = self._exact_state()
         mujoco.mj_setConst(m, self._data_ptr)  # mass-dependent constants
         self._parameters = p
         self._set_state(state)
@@ -125,38 +143,52 @@ class Physics(dm_mujoco.Physics):
     # -- the domain interface -------------------------------------------------------
 
     def arm_angle(self) -> float:
-        """Arm angle theta (rad) in (-pi, pi], 0 = centred at the front."""
-        return wrap_angle(self._qpos[self._arm_qpos])
+        """Measured arm angle theta (rad) in (-pi, pi], 0 = centred at the front."""
+        return self._measured[0]
 
     def pendulum_angle(self) -> float:
-        """Pendulum angle alpha (rad) in (-pi, pi], 0 = upright."""
-        return wrap_angle(self._qpos[self._pendulum_qpos])
+        """Measured pendulum angle alpha (rad) in (-pi, pi], 0 = upright."""
+        return self._measured[1]
 
     def arm_velocity(self) -> float:
-        """d theta / dt (rad/s)."""
-        return float(self._qvel[self._arm_dof])
+        """Measured d theta / dt (rad/s)."""
+        return self._measured[2]
 
     def pendulum_velocity(self) -> float:
-        """d alpha / dt (rad/s)."""
-        return float(self._qvel[self._pendulum_dof])
+        """Measured d alpha / dt (rad/s)."""
+        return self._measured[3]
 
     def qube_state(self) -> np.ndarray:
-        """[theta, alpha, dtheta, dalpha] (rad, rad/s), angles wrapped."""
-        return np.array([self.arm_angle(), self.pendulum_angle(),
-                         self.arm_velocity(), self.pendulum_velocity()])
+        """Measured [theta, alpha, dtheta, dalpha] (rad, rad/s), angles wrapped."""
+        return np.array(self._measured)
+
+    def true_state(self) -> np.ndarray:
+        """Exact [theta, alpha, dtheta, dalpha] of the simulation, angles wrapped."""
+        return np.array(self._exact_state())
 
     def voltage(self) -> float:
-        """Motor voltage (V) being applied."""
-        return float(self._ctrl[0])
+        """Motor voltage (V) commanded by the last `set_voltage`."""
+        return self._voltage
 
     def set_voltage(self, volts: float) -> None:
-        """Apply `volts` to the motor until the next call."""
-        self._ctrl[0] = volts
+        """Command `volts` to the motor until the next call."""
+        self._voltage = volts
+        self._ctrl[0] = volts if self._actuator_model is None else self._actuator_model(volts)
+
+    def set_sensor_model(self, sensor_model) -> None:
+        """Measure through `sensor_model(exact_state) -> measured_state` (tuples of 4 floats); None: exact."""
+        self._sensor_model = sensor_model
+        self._measure()
+
+    def set_actuator_model(self, actuator_model) -> None:
+        """Drive the motor with `actuator_model(volts) -> volts`; None: as commanded."""
+        self._actuator_model = actuator_model
 
     def motor_current(self) -> float:
-        """Motor current (A), (V - km dtheta) / Rm; the inductance is neglected."""
+        """Motor current (A), (V - km dtheta) / Rm at the motor's terminals; inductance neglected."""
         p = self._parameters
-        return (self.voltage() - p["motor_back_emf"] * self.arm_velocity()) / p["motor_resistance"]
+        speed = float(self._qvel[self._arm_dof])
+        return (float(self._ctrl[0]) - p["motor_back_emf"] * speed) / p["motor_resistance"]
 
     def set_led(self, rgb: Sequence[float]) -> None:
         """Colour the LED strip, (r, g, b) in [0, 1]."""
@@ -171,10 +203,35 @@ class Physics(dm_mujoco.Physics):
         self._set_state(state)
 
     def step(self, nstep: int = 1) -> None:
-        """Advance `nstep` physics timesteps (one MuJoCo call)."""
+        """Advance `nstep` physics timesteps (one MuJoCo call), then measure."""
         mujoco.mj_step(self._model_ptr, self._data_ptr, nstep)
+        self._measure()
+
+    def time(self) -> float:
+        """Simulated time since the episode started (s)."""
+        return self._data_ptr.time
+
+    def forward(self) -> None:
+        """Recompute derived quantities after the state was changed directly, then measure."""
+        super().forward()
+        if self._measurement_ready:
+            self._measure()
+
+    def reset(self, keyframe_id: int | None = None) -> None:
+        """Reset time, state and control (dm_control's `Physics.reset`); the voltage is 0 V."""
+        self._voltage = 0.0
+        super().reset(keyframe_id)
 
     # -- helpers ------------------------------------------------------------------
+
+    def _exact_state(self) -> tuple[float, float, float, float]:
+        qpos, qvel = self._qpos.tolist(), self._qvel.tolist()
+        return (wrap_angle(qpos[self._arm_qpos]), wrap_angle(qpos[self._pendulum_qpos]),
+                qvel[self._arm_dof], qvel[self._pendulum_dof])
+
+    def _measure(self) -> None:
+        exact = self._exact_state()
+        self._measured = exact if self._sensor_model is None else self._sensor_model(exact)
 
     def _set_state(self, state: Sequence[float]) -> None:
         theta, alpha, dtheta, dalpha = (float(x) for x in state)
@@ -183,6 +240,7 @@ class Physics(dm_mujoco.Physics):
         self._qvel[self._arm_dof] = dtheta
         self._qvel[self._pendulum_dof] = dalpha
         mujoco.mj_forward(self._model_ptr, self._data_ptr)
+        self._measure()
 
 
 def substeps_per_control_period(control_frequency: float) -> int:

@@ -43,10 +43,14 @@ def voltage_from_action(action: Any, limit: float) -> float:
     if action.shape not in ((1,), ()) or action.dtype.kind not in "fiu":
         raise ValueError(f"action must be one number (V) of shape (1,), got {action!r} "
                          f"with shape {action.shape} and dtype {action.dtype}")
-    volts = float(action.flat[0])
+    volts = action.item()
     if not math.isfinite(volts):
         raise ValueError(f"action must be finite, got {volts}")
-    return min(max(volts, -limit), limit)
+    if volts > limit:
+        return limit
+    if volts < -limit:
+        return -limit
+    return float(volts)
 
 
 class QubeTask(base.Task):
@@ -71,6 +75,7 @@ class QubeTask(base.Task):
         self._trig = observation == "trig"
         self._action_spec = specs.BoundedArray((1,), np.float64, -self._voltage_limit,
                                                self._voltage_limit, name="voltage")
+        self._layout: list[tuple[str, int]] | None = None
 
     @property
     def voltage_limit(self) -> float:
@@ -111,12 +116,24 @@ class QubeTask(base.Task):
     def observation_spec(self, physics) -> collections.OrderedDict:
         return collections.OrderedDict(state=specs.Array((6 if self._trig else 4,), np.float64, name="state"))
 
-    def get_observation(self, physics) -> collections.OrderedDict:
+    def observation_values(self, physics) -> list[float]:
+        """The observation as one flat list, in the order of `observation_spec`'s keys."""
         theta, alpha = physics.arm_angle(), physics.pendulum_angle()
-        dtheta, dalpha = physics.arm_velocity(), physics.pendulum_velocity()
         if self._trig:
-            state = np.array([math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha),
-                              dtheta, dalpha])
-        else:
-            state = np.array([theta, alpha, dtheta, dalpha])
-        return collections.OrderedDict(state=state)
+            return [math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha),
+                    physics.arm_velocity(), physics.pendulum_velocity()]
+        return [theta, alpha, physics.arm_velocity(), physics.pendulum_velocity()]
+
+    def get_observation(self, physics) -> collections.OrderedDict:
+        values = self.observation_values(physics)
+        observation = collections.OrderedDict()
+        start = 0
+        for key, size in self._observation_layout():
+            observation[key] = np.array(values[start:start + size])
+            start += size
+        return observation
+
+    def _observation_layout(self) -> list[tuple[str, int]]:
+        if self._layout is None:
+            self._layout = [(key, spec.shape[0]) for key, spec in self.observation_spec(None).items()]
+        return self._layout

@@ -70,8 +70,8 @@ class GoalTask(QubeTask):
             spec["target"] = specs.BoundedArray((1,), np.float64, -TARGET_LIMIT, TARGET_LIMIT, name="target")
         return spec
 
-    def get_observation(self, physics) -> collections.OrderedDict:
-        observation = super().get_observation(physics)
+    def observation_values(self, physics) -> list[float]:
+        values = super().observation_values(physics)
         if self._target is not None:
-            observation["target"] = np.array([self._target.value])
-        return observation
+            values.append(self._target.value)
+        return values

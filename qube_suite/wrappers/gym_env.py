@@ -67,6 +67,7 @@ class QubeEnv(gymnasium.Env):
         self._renderer = None
         self._closed = False
         self._episode_over = True
+        self._follows_target = getattr(environment.task, "follows_target", False)
         self.metadata = {
             "render_modes": [mode for mode in RENDER_MODES if mode != "human" or display_available()],
             "render_fps": int(round(environment.control_frequency)),
@@ -97,23 +98,22 @@ class QubeEnv(gymnasium.Env):
         super().reset(seed=seed)
         if seed is not None:
             self.environment.task.random.seed(seed)
-        timestep = self.environment.reset()
+        self.environment.reset()
         self._episode_over = False
         if self.render_mode == "human":
             self.render()
-        return self._flatten(timestep.observation), self._info()
+        return self._observation(), self._info()
 
     def step(self, action):
         if self._episode_over:
             raise RuntimeError("the episode has ended; call reset() before step()")
-        timestep = self.environment.step(action)
-        terminated = timestep.last() and timestep.discount == 0.0
-        truncated = timestep.last() and not terminated
-        self._episode_over = terminated or truncated
+        reward, discount = self.environment.advance(action)
+        terminated = discount == 0.0
+        truncated = discount == 1.0
+        self._episode_over = discount is not None
         if self.render_mode == "human":
             self.render()
-        observation = self._flatten(timestep.observation)
-        return observation, float(timestep.reward), terminated, truncated, self._info()
+        return self._observation(), reward, terminated, truncated, self._info()
 
     def render(self):
         if self.render_mode == "rgb_array":
@@ -142,13 +142,14 @@ class QubeEnv(gymnasium.Env):
             self.environment.close()
             self.physics.free()
 
-    def _flatten(self, observation) -> np.ndarray:
-        return np.concatenate(list(observation.values())).astype(np.float32)
+    def _observation(self) -> np.ndarray:
+        return np.array(self.environment.task.observation_values(self.environment.physics), dtype=np.float32)
 
     def _info(self) -> dict[str, float]:
-        info = {"time": float(self.physics.time()), "voltage": self.physics.voltage()}
-        if getattr(self.task, "follows_target", False):
-            info["target"] = self.task.target
+        physics = self.environment.physics
+        info = {"time": physics.time(), "voltage": physics.voltage()}
+        if self._follows_target:
+            info["target"] = self.environment.task.target
         return info
 
 
