@@ -11,10 +11,11 @@ from qube_suite import headless
 
 headless.choose_backend()  # before MuJoCo and dm_control are imported
 
+from qube_suite.evaluation import evaluate  # noqa: E402
 from qube_suite.wrappers import register_environments, to_gymnasium  # noqa: E402
 
 __version__ = "0.1.0"
 
 register_environments()
 
-__all__ = ["__version__", "to_gymnasium"]
+__all__ = ["__version__", "evaluate", "to_gymnasium"]

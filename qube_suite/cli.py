@@ -11,6 +11,7 @@ EPILOG = """examples:
   qube-suite demo                 swing the simulated Qube up with the MPC controller
   qube-suite demo --seed 3        another start state
   qube-suite list                 domains, tasks, Gymnasium ids and controllers
+  qube-suite eval --task balance --controller balance --episodes 20 --json
 """
 
 
@@ -57,6 +58,25 @@ def _list(args: argparse.Namespace) -> int:
     return 0
 
 
+def _eval(args: argparse.Namespace) -> int:
+    import json
+
+    from qube_suite.evaluation import evaluate
+
+    result = evaluate(args.controller, domain=args.domain, task=args.task, episodes=args.episodes,
+                      seed=args.seed, progress=not args.json)
+    summary = result.to_dict()
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(f"{summary['policy']} on {summary['domain']}/{summary['task']}, {summary['episodes']} episodes "
+              f"from seed {summary['seed']}:")
+        print(f"  return {summary['mean_return']:.1f} +- {summary['std_return']:.1f}, "
+              f"success {100 * summary['success_rate']:.0f} %, compute per step "
+              f"{summary['step_time_median_ms']:.3f} ms median, {summary['step_time_p99_ms']:.3f} ms p99")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="qube-suite", description="Control and RL tasks on the Quanser Qube-Servo 2.",
@@ -67,6 +87,16 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(run=_demo)
     listing = commands.add_parser("list", help="list domains, tasks, Gymnasium ids and controllers")
     listing.set_defaults(run=_list)
+    evaluation = commands.add_parser(
+        "eval", help="score a controller on a task over seeded episodes",
+        epilog="example: qube-suite eval --domain qube --task swingup --controller mpc --episodes 20 --json")
+    evaluation.add_argument("--domain", default="qube", help="domain name (default: qube)")
+    evaluation.add_argument("--task", required=True, help="task name, e.g. swingup")
+    evaluation.add_argument("--controller", required=True, help="controller name, e.g. balance or mpc")
+    evaluation.add_argument("--episodes", type=int, default=20, help="number of episodes (default: 20)")
+    evaluation.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
+    evaluation.add_argument("--json", action="store_true", help="print the result as JSON")
+    evaluation.set_defaults(run=_eval)
     return parser
 
 

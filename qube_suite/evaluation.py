@@ -1,0 +1,133 @@
+"""Score any policy on any task and domain.
+
+    from qube_suite import evaluate
+    result = evaluate("balance", domain="qube", task="balance", episodes=20, seed=0)
+    result.mean_return, result.success_rate
+
+Success, per task (documented in the README):
+  * swing-up and balance tasks: not terminated, and the pendulum within 10 degrees
+    of upright throughout the final 2 s;
+  * dampen tasks: not terminated, and the pendulum within 10 degrees of hanging
+    throughout the final 2 s;
+  * rotor: at least 5 net revolutions.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from qube_suite import baselines, suite
+
+SETTLED_TIME = 2.0
+"""Success looks at the final 2 s of an episode."""
+GOAL_TOLERANCE = math.radians(10.0)
+ROTOR_REVOLUTIONS = 5
+
+
+@dataclasses.dataclass
+class EvaluationResult:
+    """Returns and success over seeded episodes; compute per step for controllers."""
+
+    domain: str
+    task: str
+    policy: str
+    episodes: int
+    seed: int
+    returns: list[float]
+    successes: list[bool]
+    step_times: np.ndarray = dataclasses.field(repr=False)
+
+    @property
+    def mean_return(self) -> float:
+        return float(np.mean(self.returns))
+
+    @property
+    def std_return(self) -> float:
+        return float(np.std(self.returns))
+
+    @property
+    def success_rate(self) -> float:
+        return float(np.mean(self.successes))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary; step times in milliseconds."""
+        return {
+            "domain": self.domain, "task": self.task, "policy": self.policy,
+            "episodes": self.episodes, "seed": self.seed,
+            "mean_return": self.mean_return, "std_return": self.std_return,
+            "success_rate": self.success_rate, "returns": self.returns,
+            "step_time_median_ms": float(np.median(self.step_times) * 1e3),
+            "step_time_p99_ms": float(np.percentile(self.step_times, 99) * 1e3),
+        }
+
+
+def succeeded(task: str, pendulum_errors: np.ndarray, terminated: bool, revolutions: int,
+              control_frequency: float) -> bool:
+    """The task's success rule (see the module docstring) for one finished episode.
+
+    `pendulum_errors`: |alpha - goal| (rad) at every step of the episode.
+    """
+    if task == "rotor":
+        return revolutions >= ROTOR_REVOLUTIONS
+    settled = max(1, round(SETTLED_TIME * control_frequency))
+    return (not terminated and len(pendulum_errors) >= settled
+            and bool(np.all(pendulum_errors[-settled:] <= GOAL_TOLERANCE)))
+
+
+def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: str = "swingup",
+             episodes: int = 20, seed: int = 0, randomization: Any = None,
+             task_kwargs: dict[str, Any] | None = None, environment_kwargs: dict[str, Any] | None = None,
+             progress: bool = False) -> EvaluationResult:
+    """Run `episodes` episodes (seeds `seed`, `seed + 1`, ...) of `policy` and score them.
+
+    Args:
+        policy: a controller name from `qube_suite.baselines.CONTROLLERS`, or any
+            callable mapping a dm_env observation to a voltage (with an optional
+            `reset()` called before each episode).
+        domain, task, randomization, task_kwargs, environment_kwargs: as `suite.load`.
+        progress: show a progress bar (tqdm, on stderr).
+    """
+    if not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes must be a positive integer, got {episodes!r}")
+    environment = suite.load(domain, task, task_kwargs={"random": seed, **(task_kwargs or {})},
+                             environment_kwargs=environment_kwargs, randomization=randomization)
+    name = policy if isinstance(policy, str) else getattr(policy, "name", type(policy).__name__)
+    if isinstance(policy, str):
+        policy = baselines.make(policy, control_frequency=environment.control_frequency,
+                                voltage_limit=environment.task.voltage_limit)
+    hanging_goal = task.startswith("dampen")
+    returns, successes, step_times = [], [], []
+    bar = tqdm(total=episodes, unit="episode", disable=not progress, desc=f"{name} on {domain}/{task}")
+    try:
+        for episode in range(episodes):
+            environment.task.random.seed(seed + episode)
+            if hasattr(policy, "reset"):
+                policy.reset()
+            timestep = environment.reset()
+            episode_return, errors = 0.0, []
+            while not timestep.last():
+                start = time.perf_counter()
+                action = policy(timestep.observation)
+                step_times.append(time.perf_counter() - start)
+                timestep = environment.step(action)
+                episode_return += timestep.reward
+                alpha = environment.physics.pendulum_angle()
+                errors.append(math.pi - abs(alpha) if hanging_goal else abs(alpha))
+            returns.append(float(episode_return))
+            successes.append(succeeded(task, np.array(errors), timestep.discount == 0.0,
+                                       getattr(environment.task, "revolutions", 0),
+                                       environment.control_frequency))
+            bar.set_postfix(mean_return=f"{np.mean(returns):.1f}")
+            bar.update()
+    finally:
+        bar.close()
+        if hasattr(policy, "close"):
+            policy.close()
+    return EvaluationResult(domain, task, name, episodes, seed, returns, successes, np.array(step_times))

@@ -1,0 +1,62 @@
+"""The evaluation harness and `qube-suite eval`."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from qube_suite import cli, evaluate
+from qube_suite.evaluation import succeeded
+
+SETTLED = 500  # 2 s at 250 Hz
+
+
+def test_success_rule_needs_the_final_two_seconds_at_the_goal():
+    good = np.r_[np.full(1000, 3.0), np.full(SETTLED, math.radians(9.9))]
+    assert succeeded("swingup", good, terminated=False, revolutions=0, control_frequency=250)
+    late_slip = good.copy()
+    late_slip[-10] = math.radians(10.5)
+    assert not succeeded("swingup", late_slip, terminated=False, revolutions=0, control_frequency=250)
+    assert not succeeded("balance", good, terminated=True, revolutions=0, control_frequency=250)
+    assert not succeeded("dampen", good[:100], terminated=False, revolutions=0, control_frequency=250)
+
+
+def test_rotor_success_counts_revolutions():
+    errors = np.zeros(2048)
+    assert succeeded("rotor", errors, terminated=True, revolutions=5, control_frequency=250)
+    assert not succeeded("rotor", errors, terminated=False, revolutions=4, control_frequency=250)
+
+
+def test_evaluate_is_seeded_and_scores_a_controller():
+    first = evaluate("balance", task="balance", episodes=2, seed=3)
+    again = evaluate("balance", task="balance", episodes=2, seed=3)
+    assert first.returns == again.returns and first.success_rate == 1.0
+    assert first.mean_return > 2000 and len(first.step_times) == 2 * 2048
+
+
+def test_evaluate_accepts_any_callable_and_reports_failure():
+    result = evaluate(lambda observation: 3.0, task="balance", episodes=2, seed=0)
+    assert result.success_rate == 0.0 and result.mean_return < 100
+    assert result.policy == "function"
+
+
+def test_eval_json_schema(capsys):
+    assert cli.main(["eval", "--task", "balance", "--controller", "balance", "--episodes", "2",
+                     "--seed", "1", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert {"mean_return", "std_return", "success_rate", "episodes", "step_time_median_ms",
+            "step_time_p99_ms", "returns", "domain", "task", "policy", "seed"} <= set(summary)
+    assert summary["episodes"] == 2 and len(summary["returns"]) == 2 and summary["success_rate"] == 1.0
+    assert 0 < summary["step_time_median_ms"] <= summary["step_time_p99_ms"]
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["eval", "--task", "balance", "--controller", "pid"], "valid controllers"),
+    (["eval", "--task", "balanse", "--controller", "balance"], "valid tasks"),
+    (["eval", "--task", "balance", "--controller", "balance", "--episodes", "0"], "episodes"),
+])
+def test_eval_user_errors_are_one_line(capsys, argv, message):
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
