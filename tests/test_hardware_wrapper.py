@@ -175,16 +175,16 @@ def test_watchdog_expires_when_the_loop_stalls():
 
 
 def test_missed_samples_are_counted_and_too_many_stop_the_motor():
-    with QubeServo2(realtime=True, watchdog_timeout=1.0, max_missed_samples=10) as qube:
+    with QubeServo2(realtime=True, watchdog_timeout=1.0, max_missed_samples=15) as qube:
         qube.action(1.0)
         time.sleep(0.02)                                              # about 5 samples
         qube.action(1.0)
-        assert 2 <= qube.missed_samples <= 9
-        time.sleep(0.08)                                              # about 20 samples
+        assert 3 <= qube.missed_samples <= 15
+        time.sleep(0.12)                                              # about 30 samples
         with pytest.raises(MissedSamplesError, match="samples"):
             qube.action(1.0)
         assert qube.board.applied_voltage == 0.0
-        assert qube.missed_samples >= 15
+        assert qube.missed_samples >= 25
 
 
 def test_realtime_runs_at_the_sample_rate():
@@ -194,8 +194,8 @@ def test_realtime_runs_at_the_sample_rate():
         for _ in range(100):
             qube.action(0.0)
         elapsed = time.perf_counter() - start
-    assert 0.3 < elapsed < 0.8                                        # 0.4 s nominal; loose
-    assert qube.missed_samples <= 5
+    assert 0.3 < elapsed < 1.0                                        # 0.4 s nominal; loose
+    assert qube.missed_samples <= 20                                  # a busy machine may miss some
 
 
 def test_real_board_path_drives_quanser_hil_class(fake_sdk):
