@@ -84,6 +84,7 @@ def test_positive_board_voltage_counts_the_arm_up_and_turns_theta_negative():
     for _ in range(50):
         current, counts, _, tachometer = rig.read()
     assert counts[0] > 0 and current > 0 and tachometer > 0
+    assert conventions.motor_current(current) < 0
     assert rig.board.true_state()[0] < 0 and rig.board.true_state()[2] < 0
     assert conventions.arm_velocity(tachometer) == pytest.approx(rig.board.true_state()[2])
     assert conventions.arm_angle(counts[0]) == pytest.approx(rig.board.true_state()[0], abs=COUNT)

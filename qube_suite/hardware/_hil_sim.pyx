@@ -81,7 +81,6 @@ BOARD_TYPES = ("qube_servo2_usb", "qube_servo3_usb")
 
 ANALOG_CURRENT = 0
 DIGITAL_ENABLE = 0
-DIGITAL_FAULT, DIGITAL_STALL_DETECTED, DIGITAL_STALL_ERROR = 0, 1, 2
 OTHER_TACHOMETER = 14000
 OTHER_LED = (11000, 11001, 11002)
 
@@ -97,7 +96,7 @@ BUFFER_OVERFLOW = -8
 WATCHDOG_EXPIRED = -9
 TOO_MANY_SAMPLES = -10
 
-cdef enum:
+cdef enum:                      # digital inputs
     _FAULT = 0
     _STALL_DETECTED = 1
     _STALL_ERROR = 2

@@ -247,7 +247,7 @@ class QuanserWrapper:
         def attempt(function, *args):
             try:
                 return function(*args)
-            except BaseException as error:  # noqa: B036 -- a second Ctrl-C must not skip the rest
+            except BaseException as error:  # a second Ctrl-C must not skip the remaining steps
                 errors.append(error)
                 return None
 
