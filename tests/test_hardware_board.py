@@ -164,6 +164,17 @@ def test_samples_missed_in_realtime_overflow_the_task_buffer():
         strict.read()
 
 
+@pytest.mark.parametrize("mode, newest", [(_hil_sim.BufferOverflowMode.OVERWRITE_ON_OVERFLOW, True),
+                                           (_hil_sim.BufferOverflowMode.DISCARD_ON_OVERFLOW, False)])
+def test_full_buffer_keeps_the_newest_or_the_oldest_sample(mode, newest):
+    rig = Rig(realtime=True, state=[0.0, 0.3, 0.0, 0.0], overflow_mode=mode)
+    start = rig.counts[1]                                               # the sample at the start
+    time.sleep(0.1)                                                     # the pendulum falls meanwhile
+    counts = rig.read()[1]
+    fallen = abs(counts[1] - start) * COUNT > 0.05
+    assert fallen == newest
+
+
 def test_realtime_plant_keeps_moving_between_calls():
     rig = Rig(realtime=True, state=[0.0, 0.3, 0.0, 0.0])
     time.sleep(0.1)

@@ -52,6 +52,7 @@ from qube_suite.hardware.errors import (
     SafetyStopError,
     WatchdogExpiredError,
 )
+from qube_suite.hardware.plant import plant_parameters
 
 SIMULATED = "simulated"
 
@@ -151,8 +152,6 @@ class QuanserWrapper:
         if max_missed_samples is not None and max_missed_samples < 0:
             raise ValueError(f"max_missed_samples must be >= 0 or None, got {max_missed_samples}")
         if simulated:
-            from qube_suite.hardware.plant import plant_parameters
-
             plant_parameters(device.board_type, plant)  # a misspelt name fails now, not at open()
         self.device = device
         self.board_name = board
