@@ -1,0 +1,997 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
+"""A substitute for the HIL board of a Quanser Qube-Servo 2 (or 3) with a simulated Qube inside.
+
+`HIL` has the method names and semantics of Quanser's Python HIL API
+(`quanser.hardware.HIL`) for what a Qube offers, so the code that drives it is the
+code that drives a real Qube: `open`/`close`, immediate I/O (`read_encoder`,
+`read_analog`, `read_digital`, `read_other`, `write_analog`, `write_digital`,
+`write_other`, `set_encoder_counts`), reader tasks (`task_create_reader`,
+`task_create_encoder_reader`, `task_start`, `task_read`, `task_read_encoder`,
+`task_stop`, `task_delete`, `task_set_buffer_overflow_mode`,
+`task_get_buffer_overflows`) and the watchdog (`watchdog_set_analog_expiration_state`,
+`watchdog_set_digital_expiration_state`, `watchdog_start`, `watchdog_reload`,
+`watchdog_is_expired`, `watchdog_clear`, `watchdog_stop`). Errors raise `HILError`.
+
+Channels (Qube-Servo 2 and 3; signs and offsets in `conventions.py`):
+analog output 0 = motor voltage (V); digital output 0 = amplifier enable;
+encoder inputs 0 = arm, 1 = pendulum (2048 counts/rev, 0 at power-up, where the
+plant starts hanging at rest); analog input 0 = motor current (A); other input
+14000 = tachometer (arm speed, counts/s); other outputs 11000-11002 = LED red,
+green, blue (0..1); digital inputs 0 = amplifier fault, 1 = stall detected,
+2 = stall error.
+
+The plant (parameters by long name in `plant.py`) is the closed-form Furuta
+pendulum of `tests/reference_dynamics.py`, with state [theta, alpha, dtheta,
+dalpha, i] in the package's signs, plus: the motor's electrical ODE
+L di/dt = V - R i - km dtheta (torque kt i); the amplifier's voltage saturation
+and current limit (at the limit it holds the current); the cable spring
+-kc theta on the arm; Coulomb friction on both joints; stall detection (a stall
+lasting `stall_time` disables the amplifier until its enable line is toggled).
+A disabled amplifier leaves the motor open-circuit: no current, no torque.
+
+Integration, in C with the GIL released: classical RK4 at a fixed substep of at
+most 0.1 ms (at least 10 kHz; 40 substeps per sample at 250 Hz). RK4 because the
+smooth dynamics are non-stiff except for the electrical mode (time constant
+L/R = 0.14 ms): at h = 0.1 ms its h*lambda = 0.72 lies well inside RK4's
+stability interval (2.78), and fourth order keeps the mechanical error far below
+an encoder count (the tests compare with a DOP853 solution to 1e-6 rad). The
+discontinuous parts act between substeps, never inside an RK4 stage: Coulomb
+friction as an implicit (backward-Euler) impulse that solves the 2x2
+stick/slip complementarity problem exactly, so a joint sticks exactly with no
+creep; the current limit as a clamp; stall and watchdog timers at substep
+resolution.
+
+Time: with `realtime=False` (default) simulated time advances only when a
+running task's samples are read (`task_read` integrates up to the next sample
+and returns at once). With `realtime=True` the plant follows the wall clock:
+every call first integrates up to "now", writes act from that instant, and
+`task_read` sleeps until the next sample is due. Samples that fall due while
+nobody reads fill the task buffer; what happens when it is full is the task's
+buffer-overflow mode, and `task_get_buffer_overflows` counts them (missed samples).
+
+The watchdog runs on simulated time. When it expires, the analog outputs go to
+their expiration states (0 V unless set otherwise), the digital outputs too
+(low: amplifier disabled), and further writes raise `HILError` until
+`watchdog_clear` (which leaves the outputs at their expiration states).
+
+For tests and for studying the sim-to-real gap: `true_state()`,
+`set_true_state()`, `applied_voltage`, `amplifier_enabled`, `time`, `led`,
+`plant` and `set_amplifier_fault()` (stands in for the amplifier's thermal
+shutdown); in real-time mode they too catch up with the wall clock first.
+"""
+
+import math
+import threading
+import time
+
+import numpy as np
+
+from libc.math cimport cos, fabs, floor, sin
+from libc.stdlib cimport free, malloc
+
+from qube_suite.angles import wrap_angle
+from qube_suite.hardware import conventions
+from qube_suite.hardware.plant import plant_parameters
+from qube_suite.parameters import PENDULUM_ROD_RADIUS, arm_inertia, pendulum_inertia
+
+MIN_INTEGRATION_RATE = 10000.0
+"""Lowest plant integration rate (Hz): the RK4 substep is at most 0.1 ms."""
+
+BOARD_TYPES = ("qube_servo2_usb", "qube_servo3_usb")
+
+ANALOG_CURRENT = 0
+DIGITAL_ENABLE = 0
+OTHER_TACHOMETER = 14000
+OTHER_LED = (11000, 11001, 11002)
+
+# Error codes of the substitute (its own numbers, not Quanser's).
+BOARD_NOT_OPEN = -1
+INVALID_CARD = -2
+INVALID_CHANNEL = -3
+INVALID_BUFFER = -4
+INVALID_TASK = -5
+INVALID_ARGUMENT = -6
+CLOCK_IN_USE = -7
+BUFFER_OVERFLOW = -8
+WATCHDOG_EXPIRED = -9
+TOO_MANY_SAMPLES = -10
+
+cdef enum:                      # digital inputs
+    _FAULT = 0
+    _STALL_DETECTED = 1
+    _STALL_ERROR = 2
+
+cdef double ARM_SIGN = conventions.ARM_SIGN
+cdef double PENDULUM_SIGN = conventions.PENDULUM_SIGN
+cdef double COUNTS_PER_RADIAN = 1.0 / conventions.RADIANS_PER_COUNT
+cdef double PI = math.pi
+
+
+class HILError(Exception):
+    """An error of the board, like `quanser.hardware.HILError`: `error_code` and a message."""
+
+    def __init__(self, error_code, message=""):
+        super().__init__(error_code, message)
+        self.error_code = error_code
+        self.message = message
+
+    def get_error_message(self):
+        """The error's description."""
+        return self.message
+
+    def __str__(self):
+        return f"{self.message} (substitute HIL error {self.error_code})"
+
+
+class Clock:
+    """Task clocks; a Qube has one hardware clock."""
+
+    HARDWARE_CLOCK_0 = 0
+
+
+class BufferOverflowMode:
+    """What a reader task does with a new sample when its buffer is full."""
+
+    ERROR_ON_OVERFLOW = 0       # the next task read raises HILError
+    OVERWRITE_ON_OVERFLOW = 1   # the oldest sample is dropped
+    DISCARD_ON_OVERFLOW = 2     # the new sample is dropped
+
+
+class DigitalState:
+    """Watchdog expiration states of digital outputs."""
+
+    LOW = 0
+    HIGH = 1
+    TRISTATE = 2                # the amplifier enable line floats low: disabled
+    NO_CHANGE = 3
+
+
+# -- the plant, in C ------------------------------------------------------------------
+
+cdef struct Params:
+    double Rm, kt, km, Lm
+    double J0           # Jr + Jm + mp Lr^2: arm-axis inertia with the pendulum's mass at the pivot
+    double Kn           # mp lc^2 + J_n: the pendulum's extra arm-axis inertia per sin^2(alpha)
+    double Ja           # the rod's inertia about its own axis
+    double K            # mp lc^2 + J_n - J_a
+    double mLl          # mp Lr lc
+    double M22          # J_h + mp lc^2: pendulum inertia about its pivot
+    double mgl          # mp g lc
+    double Dr, Dp, Fr, Fp, kc
+    double v_limit, i_limit, stall_v, stall_w, stall_t
+
+cdef struct Plant:
+    double x[5]         # theta, alpha (unwrapped), dtheta, dalpha, motor current; package signs
+    double t            # simulated time (s)
+    double stall_timer
+    bint stall_detected, stall_error, fault
+
+cdef struct Outputs:
+    double analog       # analog output 0 as written (V, board sign)
+    bint enable         # digital output 0
+    double led[3]
+
+cdef struct Watchdog:
+    bint running, expired
+    double timeout, deadline
+    double analog_state
+    int digital_state
+
+cdef struct Sample:
+    double current      # A, board sign
+    int encoder[2]
+    signed char digital[3]
+    double tachometer   # counts/s
+
+cdef struct Sampler:
+    bint running
+    long substeps_per_sample, countdown, remaining     # remaining < 0: infinite
+    Sample* ring
+    long capacity, head, count, overflows
+    int overflow_mode
+    bint overflow_pending
+
+
+cdef inline double _clamp(double value, double limit) noexcept nogil:
+    if value > limit:
+        return limit
+    if value < -limit:
+        return -limit
+    return value
+
+
+cdef inline void _derivative(const Params* p, const double* x, double v, bint on, double* dx) noexcept nogil:
+    """d/dt of [theta, alpha, dtheta, dalpha, i] with package voltage `v` and the amplifier `on`."""
+    cdef double i, di, s, c, m11, m12, k, f1, f2, det
+    if not on:
+        i = 0.0
+        di = 0.0
+    elif p.Lm > 0.0:
+        i = x[4]
+        di = (v - p.Rm * i - p.km * x[2]) / p.Lm
+        if (i >= p.i_limit and di > 0.0) or (i <= -p.i_limit and di < 0.0):
+            di = 0.0                                    # the amplifier holds the current at its limit
+    else:
+        i = _clamp((v - p.km * x[2]) / p.Rm, p.i_limit)
+        di = 0.0
+    s = sin(x[1])
+    c = cos(x[1])
+    m11 = p.J0 + p.Kn * s * s + p.Ja * c * c
+    m12 = -p.mLl * c
+    k = p.K
+    f1 = p.kt * i - p.Dr * x[2] - p.kc * x[0] - 2.0 * k * s * c * x[2] * x[3] - p.mLl * s * x[3] * x[3]
+    f2 = -p.Dp * x[3] + k * s * c * x[2] * x[2] + p.mgl * s
+    det = m11 * p.M22 - m12 * m12
+    dx[0] = x[2]
+    dx[1] = x[3]
+    dx[2] = (p.M22 * f1 - m12 * f2) / det
+    dx[3] = (m11 * f2 - m12 * f1) / det
+    dx[4] = di
+
+
+cdef inline bint _friction_mode(double v1, double v2, double a11, double a12, double a22, double f1,
+                                double f2, int m1, int m2, double* tau) noexcept nogil:
+    """Friction impulses for one stick/slip mode (m = 0 stick, +-1 slip); False if inconsistent."""
+    cdef double t1 = m1 * f1, t2 = m2 * f2, w1, w2, det
+    cdef double tol1 = 1e-12 * (fabs(v1) + 1e-9), tol2 = 1e-12 * (fabs(v2) + 1e-9)
+    if m1 == 0 and m2 == 0:
+        det = a11 * a22 - a12 * a12
+        t1 = (a22 * v1 - a12 * v2) / det
+        t2 = (a11 * v2 - a12 * v1) / det
+    elif m1 == 0:
+        t1 = (v1 - a12 * t2) / a11
+    elif m2 == 0:
+        t2 = (v2 - a12 * t1) / a22
+    if fabs(t1) > f1 * (1.0 + 1e-12) or fabs(t2) > f2 * (1.0 + 1e-12):
+        return False
+    w1 = v1 - a11 * t1 - a12 * t2
+    w2 = v2 - a12 * t1 - a22 * t2
+    if (m1 != 0 and f1 > 0.0 and m1 * w1 < -tol1) or (m2 != 0 and f2 > 0.0 and m2 * w2 < -tol2):
+        return False
+    tau[0] = t1
+    tau[1] = t2
+    return True
+
+
+cdef inline int _sign(double value) noexcept nogil:
+    return (value > 0.0) - (value < 0.0)
+
+
+cdef void _coulomb_friction(const Params* p, double* x, const double* x_start, double h) noexcept nogil:
+    """Apply Coulomb friction over a substep as an implicit impulse (exact stick/slip).
+
+    Finds friction torques tau, |tau_j| <= F_j, with the new velocity
+    w = v - h M^-1 tau and tau_j = F_j sign(w_j) wherever w_j != 0 (a linear
+    complementarity problem with a unique solution, M being positive definite),
+    by trying the nine stick/slip modes, the likely one first. Stuck joints keep
+    their start-of-substep position.
+    """
+    cdef double f1 = p.Fr, f2 = p.Fp, s, c, m11, m12, det, a11, a12, a22
+    cdef double tau[2]
+    cdef int m1, m2, first1, first2
+    cdef bint found = False
+    if f1 == 0.0 and f2 == 0.0:
+        return
+    s = sin(x[1])
+    c = cos(x[1])
+    m11 = p.J0 + p.Kn * s * s + p.Ja * c * c
+    m12 = -p.mLl * c
+    det = m11 * p.M22 - m12 * m12
+    a11 = h * p.M22 / det                               # A = h M^-1
+    a12 = -h * m12 / det
+    a22 = h * m11 / det
+    first1 = _sign(x[2]) if f1 > 0.0 else 0
+    first2 = _sign(x[3]) if f2 > 0.0 else 0
+    # A joint without friction is "slipping" with zero torque: its mode is fixed to 1 with F = 0.
+    if f1 == 0.0:
+        first1 = 1
+    if f2 == 0.0:
+        first2 = 1
+    found = _friction_mode(x[2], x[3], a11, a12, a22, f1, f2, first1, first2, tau)
+    m1 = -1
+    while not found and m1 <= 1:
+        m2 = -1
+        while not found and m2 <= 1:
+            if (f1 > 0.0 or m1 == 1) and (f2 > 0.0 or m2 == 1):
+                found = _friction_mode(x[2], x[3], a11, a12, a22, f1, f2, m1, m2, tau)
+            m2 += 1
+        m1 += 1
+    if not found:                                       # unreachable for positive-definite M
+        return
+    x[0] -= 0.5 * h * (a11 * tau[0] + a12 * tau[1])
+    x[1] -= 0.5 * h * (a12 * tau[0] + a22 * tau[1])
+    x[2] -= a11 * tau[0] + a12 * tau[1]
+    x[3] -= a12 * tau[0] + a22 * tau[1]
+    if f1 > 0.0 and fabs(tau[0]) < f1 * (1.0 - 1e-12):   # stuck
+        x[2] = 0.0
+        x[0] = x_start[0]
+    if f2 > 0.0 and fabs(tau[1]) < f2 * (1.0 - 1e-12):
+        x[3] = 0.0
+        x[1] = x_start[1]
+
+
+cdef void _substep(const Params* p, Plant* s, double applied, bint on, double h) noexcept nogil:
+    """Advance the plant by h with the amplifier applying `applied` volts (board sign) if `on`."""
+    cdef double k1[5]
+    cdef double k2[5]
+    cdef double k3[5]
+    cdef double k4[5]
+    cdef double y[5]
+    cdef double start[5]
+    cdef double v = ARM_SIGN * applied
+    cdef int j
+    for j in range(5):
+        start[j] = s.x[j]
+    _derivative(p, s.x, v, on, k1)
+    for j in range(5):
+        y[j] = s.x[j] + 0.5 * h * k1[j]
+    _derivative(p, y, v, on, k2)
+    for j in range(5):
+        y[j] = s.x[j] + 0.5 * h * k2[j]
+    _derivative(p, y, v, on, k3)
+    for j in range(5):
+        y[j] = s.x[j] + h * k3[j]
+    _derivative(p, y, v, on, k4)
+    for j in range(5):
+        s.x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    _coulomb_friction(p, s.x, start, h)
+    if not on:
+        s.x[4] = 0.0
+    elif p.Lm > 0.0:
+        s.x[4] = _clamp(s.x[4], p.i_limit)
+    else:
+        s.x[4] = _clamp((v - p.km * s.x[2]) / p.Rm, p.i_limit)
+    s.stall_detected = on and fabs(applied) > p.stall_v and fabs(s.x[2]) < p.stall_w
+    if s.stall_detected:
+        s.stall_timer += h
+        if s.stall_timer >= p.stall_t:
+            s.stall_error = True
+    else:
+        s.stall_timer = 0.0
+    s.t += h
+
+
+# -- the board ------------------------------------------------------------------------
+
+cdef class Task:
+    """A reader task's handle; channels are fixed when it is created."""
+
+    cdef int analog[1]
+    cdef int encoder[2]
+    cdef int digital[3]
+    cdef int other[1]
+    cdef int n_analog, n_encoder, n_digital, n_other
+    cdef long samples_in_buffer
+    cdef int overflow_mode
+    cdef bint deleted
+    cdef object board
+
+
+cdef class HIL:
+    """A Qube-Servo board with a simulated Qube: Quanser's HIL API, plus inspection for tests.
+
+    HIL(card_type=None, card_identifier="0", *, plant=None, realtime=False): like
+    Quanser's HIL, opens the board when `card_type` is given. `plant` overrides
+    plant parameters by long name (`qube_suite.hardware.plant`); `realtime=True`
+    paces tasks by the wall clock.
+    """
+
+    INFINITE = -1
+
+    cdef Params p
+    cdef Plant s
+    cdef Outputs out
+    cdef Watchdog wd
+    cdef Sampler smp
+    cdef int encoder_offset[2]
+    cdef double h_idle, h
+    cdef double wall_origin
+    cdef bint realtime_, is_open
+    cdef object lock, plant_overrides, plant_values, card_type, running_task
+
+    def __cinit__(self):
+        self.smp.ring = NULL
+
+    def __init__(self, card_type=None, card_identifier="0", *, plant=None, realtime=False):
+        plant_parameters("qube_servo2_usb", plant)     # unknown names fail here, before opening
+        self.plant_overrides = dict(plant or {})
+        self.realtime_ = bool(realtime)
+        self.lock = threading.Lock()
+        self.h_idle = 1.0 / MIN_INTEGRATION_RATE
+        self.h = self.h_idle
+        self.s.x[0] = 0.0
+        self.s.x[1] = PI                                 # power-up: hanging at rest
+        self.s.x[2] = self.s.x[3] = self.s.x[4] = 0.0
+        self.s.t = 0.0
+        self.out.led[0] = self.out.led[1] = self.out.led[2] = 0.0
+        self.encoder_offset[0] = self.encoder_offset[1] = 0
+        if card_type is not None:
+            self.open(card_type, card_identifier)
+
+    def __dealloc__(self):
+        free(self.smp.ring)
+
+    # -- opening and closing -------------------------------------------------------------
+
+    def open(self, card_type, card_identifier):
+        """Open the board `card_type` ("qube_servo2_usb" or "qube_servo3_usb") number `card_identifier`."""
+        with self.lock:
+            if self.is_open:
+                raise HILError(INVALID_ARGUMENT, "the board is already open")
+            if card_type not in BOARD_TYPES:
+                raise HILError(INVALID_CARD, f"unknown card type {card_type!r}; the substitute offers "
+                                              f"{', '.join(BOARD_TYPES)}")
+            values = plant_parameters(card_type, self.plant_overrides)
+            self._set_parameters(values)
+            self.plant_values = values
+            self.card_type = card_type
+            self.wall_origin = time.perf_counter() - self.s.t
+            self.is_open = True
+
+    def is_valid(self):
+        """True while the board is open."""
+        return bool(self.is_open)
+
+    def close(self):
+        """Stop tasks and the watchdog, zero the outputs (0 V, amplifier disabled) and close."""
+        with self.lock:
+            if not self.is_open:
+                return
+            self._sync()
+            self.smp.running = False
+            self.running_task = None
+            self.wd.running = False
+            self.out.analog = 0.0
+            self.out.enable = False
+            self.h = self.h_idle
+            self.is_open = False
+
+    # -- immediate I/O -------------------------------------------------------------------
+
+    def read_encoder(self, channels, num_channels, int[::1] buffer):
+        """Read encoder counts now into `buffer`."""
+        cdef list chans = _channels(channels, num_channels, _length_i(buffer), "encoder", (0, 1))
+        cdef Sample sample
+        with self.lock:
+            self._require_open()
+            self._sync()
+            self._sample(&sample)
+        for j, c in enumerate(chans):
+            buffer[j] = sample.encoder[c]
+
+    def read_analog(self, channels, num_channels, double[::1] buffer):
+        """Read the motor current (A) now into `buffer`."""
+        cdef list chans = _channels(channels, num_channels, _length_d(buffer), "analog input", (ANALOG_CURRENT,))
+        cdef Sample sample
+        with self.lock:
+            self._require_open()
+            self._sync()
+            self._sample(&sample)
+        for j in range(len(chans)):
+            buffer[j] = sample.current
+
+    def read_digital(self, channels, num_channels, signed char[::1] buffer):
+        """Read the fault and stall flags now into `buffer` (1 = asserted)."""
+        cdef list chans = _channels(channels, num_channels, _length_b(buffer), "digital input", (0, 1, 2))
+        cdef Sample sample
+        with self.lock:
+            self._require_open()
+            self._sync()
+            self._sample(&sample)
+        for j, c in enumerate(chans):
+            buffer[j] = sample.digital[c]
+
+    def read_other(self, channels, num_channels, double[::1] buffer):
+        """Read the tachometer (counts/s) now into `buffer`."""
+        cdef list chans = _channels(channels, num_channels, _length_d(buffer), "other input", (OTHER_TACHOMETER,))
+        cdef Sample sample
+        with self.lock:
+            self._require_open()
+            self._sync()
+            self._sample(&sample)
+        for j in range(len(chans)):
+            buffer[j] = sample.tachometer
+
+    def write_analog(self, channels, num_channels, const double[::1] buffer):
+        """Set the motor voltage (V); the amplifier applies it within its limit while enabled."""
+        cdef list chans = _channels(channels, num_channels, _length_cd(buffer), "analog output", (0,))
+        for j in range(len(chans)):
+            if not math.isfinite(buffer[j]):
+                raise HILError(INVALID_ARGUMENT, f"analog output value {buffer[j]} is not finite")
+        with self.lock:
+            self._require_writable()
+            for j in range(len(chans)):
+                self.out.analog = buffer[j]
+
+    def write_digital(self, channels, num_channels, const signed char[::1] buffer):
+        """Set the amplifier enable line; a low level also clears a stall error."""
+        cdef list chans = _channels(channels, num_channels, _length_cb(buffer), "digital output", (DIGITAL_ENABLE,))
+        with self.lock:
+            self._require_writable()
+            for j in range(len(chans)):
+                self.out.enable = buffer[j] != 0
+                if not self.out.enable:
+                    self.s.stall_error = False
+                    self.s.stall_timer = 0.0
+
+    def write_other(self, channels, num_channels, const double[::1] buffer):
+        """Set LED colour components (other outputs 11000-11002), each saturated to [0, 1]."""
+        cdef list chans = _channels(channels, num_channels, _length_cd(buffer), "other output", OTHER_LED)
+        with self.lock:
+            self._require_writable()
+            for j, c in enumerate(chans):
+                self.out.led[c - OTHER_LED[0]] = min(max(float(buffer[j]), 0.0), 1.0)
+
+    def set_encoder_counts(self, channels, num_channels, const int[::1] buffer):
+        """Make the encoders read `buffer` at their present positions."""
+        cdef list chans = _channels(channels, num_channels, _length_ci(buffer), "encoder", (0, 1))
+        cdef double positions[2]
+        with self.lock:
+            self._require_writable()
+            self._encoder_positions(positions)
+            for j, c in enumerate(chans):
+                self.encoder_offset[c] = buffer[j] - <int>floor(positions[c])
+
+    # -- tasks ---------------------------------------------------------------------------
+
+    def task_create_reader(self, samples_in_buffer, analog_channels, num_analog_channels, encoder_channels,
+                           num_encoder_channels, digital_channels, num_digital_channels, other_channels,
+                           num_other_channels):
+        """A task reading analog, encoder, digital and other inputs at each sample."""
+        cdef Task task = Task()
+        analog = _channels(analog_channels, num_analog_channels, -1, "analog input", (ANALOG_CURRENT,))
+        encoder = _channels(encoder_channels, num_encoder_channels, -1, "encoder", (0, 1))
+        digital = _channels(digital_channels, num_digital_channels, -1, "digital input", (0, 1, 2))
+        other = _channels(other_channels, num_other_channels, -1, "other input", (OTHER_TACHOMETER,))
+        for name, chans, capacity in (("analog", analog, 1), ("encoder", encoder, 2), ("digital", digital, 3),
+                                      ("other", other, 1)):
+            if len(chans) > capacity or len(set(chans)) != len(chans):
+                raise HILError(INVALID_CHANNEL, f"repeated {name} channels in {chans}")
+        task.n_analog, task.n_encoder, task.n_digital, task.n_other = (
+            len(analog), len(encoder), len(digital), len(other))
+        for j, c in enumerate(analog):
+            task.analog[j] = c
+        for j, c in enumerate(encoder):
+            task.encoder[j] = c
+        for j, c in enumerate(digital):
+            task.digital[j] = c
+        for j, c in enumerate(other):
+            task.other[j] = c
+        return self._new_task(task, samples_in_buffer)
+
+    def task_create_encoder_reader(self, samples_in_buffer, channels, num_channels):
+        """A task reading encoders at each sample."""
+        return self.task_create_reader(samples_in_buffer, None, 0, channels, num_channels, None, 0, None, 0)
+
+    def task_set_buffer_overflow_mode(self, Task task not None, mode):
+        """Choose what a full task buffer does with a new sample (a `BufferOverflowMode`)."""
+        if mode not in (BufferOverflowMode.ERROR_ON_OVERFLOW, BufferOverflowMode.OVERWRITE_ON_OVERFLOW,
+                        BufferOverflowMode.DISCARD_ON_OVERFLOW):
+            raise HILError(INVALID_ARGUMENT, f"unsupported buffer overflow mode {mode!r}")
+        with self.lock:
+            self._require_task(task)
+            task.overflow_mode = mode
+            if task is self.running_task:
+                self.smp.overflow_mode = mode
+
+    def task_start(self, Task task not None, clock, frequency, num_samples):
+        """Start sampling at `frequency` (Hz) for `num_samples` samples (HIL.INFINITE: until stopped).
+
+        The first sample is taken at once; the plant then integrates at
+        ceil(10 kHz / frequency) substeps per sample.
+        """
+        frequency = float(frequency)
+        if clock != Clock.HARDWARE_CLOCK_0:
+            raise HILError(INVALID_ARGUMENT, f"unsupported clock {clock!r}; a Qube has HARDWARE_CLOCK_0")
+        if not (math.isfinite(frequency) and frequency > 0.0):
+            raise HILError(INVALID_ARGUMENT, f"frequency must be positive, got {frequency}")
+        if num_samples != HIL.INFINITE and num_samples <= 0:
+            raise HILError(INVALID_ARGUMENT, f"num_samples must be positive or HIL.INFINITE, got {num_samples}")
+        with self.lock:
+            self._require_task(task)
+            if self.smp.running:
+                raise HILError(CLOCK_IN_USE, "another task is running on the hardware clock")
+            self._sync()
+            free(self.smp.ring)
+            self.smp.ring = <Sample*>malloc(task.samples_in_buffer * sizeof(Sample))
+            if self.smp.ring == NULL:
+                raise MemoryError()
+            self.smp.capacity = task.samples_in_buffer
+            self.smp.head = self.smp.count = self.smp.overflows = 0
+            self.smp.overflow_mode = task.overflow_mode
+            self.smp.overflow_pending = False
+            self.smp.substeps_per_sample = max(1, math.ceil(MIN_INTEGRATION_RATE / frequency - 1e-9))
+            self.h = 1.0 / (frequency * self.smp.substeps_per_sample)
+            self.smp.countdown = self.smp.substeps_per_sample
+            self.smp.remaining = num_samples
+            self.smp.running = True
+            self.running_task = task
+            self._take_sample()
+
+    def task_read(self, Task task not None, num_samples, double[::1] analog_buffer, int[::1] encoder_buffer,
+                  signed char[::1] digital_buffer, double[::1] other_buffer):
+        """Read `num_samples` samples (the oldest first), waiting for them; returns how many were read.
+
+        Returns 0 once a finite task has delivered all its samples.
+        """
+        cdef long n = num_samples, j, c, k
+        cdef Sample* sample
+        _check_buffer(_length_d(analog_buffer), n * task.n_analog, "analog")
+        _check_buffer(_length_i(encoder_buffer), n * task.n_encoder, "encoder")
+        _check_buffer(_length_b(digital_buffer), n * task.n_digital, "digital")
+        _check_buffer(_length_d(other_buffer), n * task.n_other, "other")
+        with self.lock:
+            self._require_task(task)
+            if task is not self.running_task:
+                raise HILError(INVALID_TASK, "the task is not running")
+            if n <= 0 or n > self.smp.capacity:
+                raise HILError(TOO_MANY_SAMPLES, f"can read 1 to {self.smp.capacity} samples, not {n}")
+            if not self._wait_for_samples(n):
+                return 0
+            if self.smp.overflow_pending:
+                self.smp.overflow_pending = False
+                raise HILError(BUFFER_OVERFLOW, "the task buffer overflowed: samples were not read in time")
+            for k in range(n):
+                sample = &self.smp.ring[self.smp.head]
+                for j in range(task.n_analog):
+                    analog_buffer[k * task.n_analog + j] = sample.current
+                for j in range(task.n_encoder):
+                    c = task.encoder[j]
+                    encoder_buffer[k * task.n_encoder + j] = sample.encoder[c]
+                for j in range(task.n_digital):
+                    c = task.digital[j]
+                    digital_buffer[k * task.n_digital + j] = sample.digital[c]
+                for j in range(task.n_other):
+                    other_buffer[k * task.n_other + j] = sample.tachometer
+                self.smp.head = (self.smp.head + 1) % self.smp.capacity
+                self.smp.count -= 1
+        return n
+
+    def task_read_encoder(self, Task task not None, num_samples, int[::1] buffer):
+        """`task_read` of an encoder reader task."""
+        return self.task_read(task, num_samples, None, buffer, None, None)
+
+    def task_get_buffer_overflows(self, Task task not None):
+        """Samples lost (overwritten or discarded) because the task buffer was full."""
+        with self.lock:
+            self._require_task(task)
+            return int(self.smp.overflows) if task is self.running_task else 0
+
+    def task_stop(self, Task task not None):
+        """Stop a task's sampling; it may be started again."""
+        with self.lock:
+            self._require_task(task)
+            if task is self.running_task:
+                self._sync()
+                self.smp.running = False
+                self.running_task = None
+                self.h = self.h_idle
+
+    def task_delete(self, Task task not None):
+        """Stop (if running) and delete a task; its handle becomes invalid."""
+        if task.deleted or task.board is not self:
+            raise HILError(INVALID_TASK, "not a task of this board")
+        with self.lock:
+            if task is self.running_task:
+                self._sync()
+                self.smp.running = False
+                self.running_task = None
+                self.h = self.h_idle
+            task.deleted = True
+
+    # -- watchdog ------------------------------------------------------------------------
+
+    def watchdog_set_analog_expiration_state(self, channels, num_channels, const double[::1] voltages):
+        """Voltages that the analog outputs take when the watchdog expires (default 0 V)."""
+        cdef list chans = _channels(channels, num_channels, _length_cd(voltages), "analog output", (0,))
+        with self.lock:
+            self._require_open()
+            for j in range(len(chans)):
+                self.wd.analog_state = voltages[j]
+
+    def watchdog_set_digital_expiration_state(self, channels, num_channels, states):
+        """`DigitalState`s that the digital outputs take when the watchdog expires (default LOW)."""
+        cdef list chans = _channels(channels, num_channels, -1 if states is None else len(states), "digital output",
+                                      (DIGITAL_ENABLE,))
+        values = [int(states[j]) for j in range(len(chans))]
+        for value in values:
+            if value not in (DigitalState.LOW, DigitalState.HIGH, DigitalState.TRISTATE, DigitalState.NO_CHANGE):
+                raise HILError(INVALID_ARGUMENT, f"{value} is not a DigitalState")
+        with self.lock:
+            self._require_open()
+            for value in values:
+                self.wd.digital_state = value
+
+    def watchdog_start(self, timeout):
+        """Start the watchdog: it expires `timeout` (s) of board time after the last reload."""
+        timeout = float(timeout)
+        if not (math.isfinite(timeout) and timeout > 0.0):
+            raise HILError(INVALID_ARGUMENT, f"watchdog timeout must be positive, got {timeout}")
+        with self.lock:
+            self._require_open()
+            self._sync()
+            self.wd.timeout = timeout
+            self.wd.deadline = self.s.t + timeout
+            self.wd.running = True
+
+    def watchdog_reload(self):
+        """Restart the watchdog's countdown; False (and no reload) if it has already expired."""
+        with self.lock:
+            self._require_open()
+            self._sync()
+            if self.wd.expired:
+                return False
+            self.wd.deadline = self.s.t + self.wd.timeout
+            return True
+
+    def watchdog_is_expired(self):
+        """True if the watchdog has expired and not been cleared."""
+        with self.lock:
+            self._require_open()
+            self._sync()
+            return bool(self.wd.expired)
+
+    def watchdog_clear(self):
+        """Allow writes again after an expiry; the outputs stay at their expiration states."""
+        with self.lock:
+            self._require_open()
+            self._sync()
+            self.wd.expired = False
+            self.wd.running = False
+
+    def watchdog_stop(self):
+        """Stop the watchdog (an expiry stays until `watchdog_clear`)."""
+        with self.lock:
+            self._require_open()
+            self._sync()
+            self.wd.running = False
+
+    # -- inspection (not part of Quanser's API) ------------------------------------------
+
+    def true_state(self):
+        """[theta, alpha, dtheta, dalpha] of the plant (rad, rad/s), angles wrapped to (-pi, pi]."""
+        with self.lock:
+            self._sync()
+            return np.array([wrap_angle(self.s.x[0]), wrap_angle(self.s.x[1]), self.s.x[2], self.s.x[3]])
+
+    def set_true_state(self, state):
+        """Put the plant at [theta, alpha, dtheta, dalpha] (rad, rad/s); the encoders count the move."""
+        values = [float(v) for v in state]
+        if len(values) != 4 or not all(math.isfinite(v) for v in values):
+            raise ValueError(f"state must be 4 finite numbers, got {state!r}")
+        with self.lock:
+            self._sync()
+            for j in range(4):
+                self.s.x[j] = values[j]
+            self.s.x[4] = 0.0
+
+    def set_amplifier_fault(self, fault):
+        """Raise (True) or clear (False) an amplifier fault, as a thermal shutdown would."""
+        with self.lock:
+            self._sync()
+            self.s.fault = bool(fault)
+
+    @property
+    def applied_voltage(self):
+        """Voltage (V, board sign) the amplifier applies to the motor now: 0 while it is disabled."""
+        with self.lock:
+            self._sync()
+            return self._applied()
+
+    @property
+    def amplifier_enabled(self):
+        """True if the amplifier drives the motor (enabled, no fault, no stall error)."""
+        with self.lock:
+            self._sync()
+            return bool(self._amplifier_on())
+
+    @property
+    def time(self):
+        """The board's time (s): simulated time, which follows the wall clock in real-time mode."""
+        with self.lock:
+            self._sync()
+            return self.s.t
+
+    @property
+    def led(self):
+        """The LED's (red, green, blue), each in [0, 1]."""
+        return (self.out.led[0], self.out.led[1], self.out.led[2])
+
+    @property
+    def plant(self):
+        """The plant's parameters by long name (a copy); set when the board opens."""
+        return dict(self.plant_values or {})
+
+    @property
+    def realtime(self):
+        """True if the board follows the wall clock."""
+        return bool(self.realtime_)
+
+    # -- internals -----------------------------------------------------------------------
+
+    cdef int _set_parameters(self, dict values) except -1:
+        mp, lc, Lr = values["pendulum_mass"], values["pendulum_length"] / 2.0, values["arm_length"]
+        jp = pendulum_inertia(mp, values["pendulum_length"])
+        self.p.Rm, self.p.kt, self.p.km = (values["motor_resistance"], values["motor_torque_constant"],
+                                           values["motor_back_emf"])
+        self.p.Lm = values["motor_inductance"]
+        self.p.J0 = arm_inertia(values["arm_mass"], Lr) + values["rotor_inertia"] + mp * Lr * Lr
+        self.p.Ja = 0.5 * mp * PENDULUM_ROD_RADIUS ** 2
+        self.p.Kn = mp * lc * lc + jp
+        self.p.K = mp * lc * lc + jp - self.p.Ja
+        self.p.mLl = mp * Lr * lc
+        self.p.M22 = jp + mp * lc * lc
+        self.p.mgl = mp * values["gravity"] * lc
+        self.p.Dr, self.p.Dp = values["arm_damping"], values["pendulum_damping"]
+        self.p.Fr, self.p.Fp = values["arm_friction"], values["pendulum_friction"]
+        self.p.kc = values["cable_stiffness"]
+        self.p.v_limit, self.p.i_limit = values["amplifier_voltage_limit"], values["current_limit"]
+        self.p.stall_v, self.p.stall_w, self.p.stall_t = (values["stall_voltage"], values["stall_speed"],
+                                                          values["stall_time"])
+        return 0
+
+    cdef inline bint _amplifier_on(self) noexcept nogil:
+        return self.out.enable and not self.s.fault and not self.s.stall_error
+
+    cdef inline double _applied(self) noexcept nogil:
+        return _clamp(self.out.analog, self.p.v_limit) if self._amplifier_on() else 0.0
+
+    cdef void _encoder_positions(self, double* positions) noexcept nogil:
+        positions[0] = ARM_SIGN * self.s.x[0] * COUNTS_PER_RADIAN
+        positions[1] = PENDULUM_SIGN * (self.s.x[1] - PI) * COUNTS_PER_RADIAN
+
+    cdef void _sample(self, Sample* sample) noexcept nogil:
+        cdef double positions[2]
+        self._encoder_positions(positions)
+        sample.current = ARM_SIGN * self.s.x[4]
+        sample.encoder[0] = self.encoder_offset[0] + <int>floor(positions[0])
+        sample.encoder[1] = self.encoder_offset[1] + <int>floor(positions[1])
+        sample.digital[_FAULT] = self.s.fault
+        sample.digital[_STALL_DETECTED] = self.s.stall_detected
+        sample.digital[_STALL_ERROR] = self.s.stall_error
+        sample.tachometer = ARM_SIGN * self.s.x[2] * COUNTS_PER_RADIAN
+
+    cdef void _take_sample(self) noexcept nogil:
+        """Put the present sample into the task buffer, by the overflow mode if it is full."""
+        cdef long slot
+        if self.smp.remaining > 0:
+            self.smp.remaining -= 1
+        if self.smp.count == self.smp.capacity:
+            self.smp.overflows += 1
+            if self.smp.overflow_mode == 2:                 # DISCARD_ON_OVERFLOW
+                return
+            if self.smp.overflow_mode == 0:                 # ERROR_ON_OVERFLOW: keep the buffer, fail the read
+                self.smp.overflow_pending = True
+                return
+            self.smp.head = (self.smp.head + 1) % self.smp.capacity
+            self.smp.count -= 1
+        slot = (self.smp.head + self.smp.count) % self.smp.capacity
+        self._sample(&self.smp.ring[slot])
+        self.smp.count += 1
+
+    cdef void _advance(self, long substeps) noexcept nogil:
+        """Integrate `substeps` substeps, expiring the watchdog and taking samples when due."""
+        cdef long k
+        for k in range(substeps):
+            _substep(&self.p, &self.s, self._applied(), self._amplifier_on(), self.h)
+            if self.wd.running and not self.wd.expired and self.s.t >= self.wd.deadline - 1e-12:
+                self.wd.expired = True
+                self.out.analog = self.wd.analog_state
+                if self.wd.digital_state != 3:              # NO_CHANGE
+                    self.out.enable = self.wd.digital_state == 1
+            if self.smp.running and self.smp.remaining != 0:
+                self.smp.countdown -= 1
+                if self.smp.countdown == 0:
+                    self.smp.countdown = self.smp.substeps_per_sample
+                    self._take_sample()
+
+    cdef int _sync(self) except -1:
+        """In real-time mode, integrate up to the wall clock's present."""
+        cdef long substeps
+        if not self.realtime_ or not self.is_open:
+            return 0
+        substeps = <long>floor((time.perf_counter() - self.wall_origin - self.s.t) / self.h + 1e-9)
+        if substeps > 0:
+            with nogil:
+                self._advance(substeps)
+        return 0
+
+    cdef bint _wait_for_samples(self, long n) except -1:
+        """Make `n` samples available (integrating or sleeping); False if the task has finished."""
+        cdef long substeps
+        while self.smp.count < n:
+            if not self.smp.running:
+                raise HILError(INVALID_TASK, "the task was stopped while being read")
+            if self.smp.remaining == 0:
+                return self.smp.count >= n
+            if not self.realtime_:
+                substeps = self.smp.countdown
+                with nogil:
+                    self._advance(substeps)
+                continue
+            due = self.wall_origin + self.s.t + self.smp.countdown * self.h
+            delay = due - time.perf_counter()
+            if delay > 0.0:
+                self.lock.release()
+                try:
+                    time.sleep(delay)
+                finally:
+                    self.lock.acquire()
+            self._sync()
+        return True
+
+    cdef object _new_task(self, Task task, samples_in_buffer):
+        if int(samples_in_buffer) <= 0:
+            raise HILError(INVALID_ARGUMENT, f"samples_in_buffer must be positive, got {samples_in_buffer}")
+        with self.lock:
+            self._require_open()
+            task.samples_in_buffer = int(samples_in_buffer)
+            task.overflow_mode = BufferOverflowMode.ERROR_ON_OVERFLOW
+            task.board = self
+        return task
+
+    cdef int _require_open(self) except -1:
+        if not self.is_open:
+            raise HILError(BOARD_NOT_OPEN, "the board is not open")
+        return 0
+
+    cdef int _require_writable(self) except -1:
+        self._require_open()
+        self._sync()
+        if self.wd.expired:
+            raise HILError(WATCHDOG_EXPIRED, "the watchdog has expired; outputs are locked until watchdog_clear")
+        return 0
+
+    cdef int _require_task(self, Task task) except -1:
+        self._require_open()
+        if task.deleted or task.board is not self:
+            raise HILError(INVALID_TASK, "not a task of this board")
+        return 0
+
+
+cdef list _channels(channels, num_channels, Py_ssize_t buffer_length, str kind, tuple valid):
+    """Channel numbers as a list, checking the count, the channels and the buffer's length (-1: none)."""
+    cdef long n = num_channels
+    if n < 0:
+        raise HILError(INVALID_ARGUMENT, f"num_channels must be >= 0, got {n}")
+    if n == 0:
+        return []
+    if channels is None or len(channels) < n:
+        raise HILError(INVALID_BUFFER, f"{kind} channel array holds fewer than {n} channels")
+    if buffer_length >= 0 and buffer_length < n:
+        raise HILError(INVALID_BUFFER, f"{kind} buffer holds fewer than {n} values")
+    chans = [int(channels[j]) for j in range(n)]
+    for c in chans:
+        if c not in valid:
+            raise HILError(INVALID_CHANNEL, f"{kind} channel {c} does not exist on a Qube; valid: {valid}")
+    return chans
+
+
+cdef int _check_buffer(Py_ssize_t length, long needed, str kind) except -1:
+    if needed > 0 and length < needed:
+        raise HILError(INVALID_BUFFER, f"{kind} buffer must hold at least {needed} values")
+    return 0
+
+
+cdef inline Py_ssize_t _length_d(double[::1] buffer):
+    return -1 if buffer is None else buffer.shape[0]
+
+
+cdef inline Py_ssize_t _length_cd(const double[::1] buffer):
+    return -1 if buffer is None else buffer.shape[0]
+
+
+cdef inline Py_ssize_t _length_i(int[::1] buffer):
+    return -1 if buffer is None else buffer.shape[0]
+
+
+cdef inline Py_ssize_t _length_ci(const int[::1] buffer):
+    return -1 if buffer is None else buffer.shape[0]
+
+
+cdef inline Py_ssize_t _length_b(signed char[::1] buffer):
+    return -1 if buffer is None else buffer.shape[0]
+
+
+cdef inline Py_ssize_t _length_cb(const signed char[::1] buffer):
+    return -1 if buffer is None else buffer.shape[0]

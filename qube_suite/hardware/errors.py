@@ -1,0 +1,41 @@
+"""Exceptions of the hardware path.
+
+Every safety stop of `QuanserWrapper` writes 0 V to the motor first and then
+raises one of the `SafetyStopError` subclasses below; none of them is printed and
+ignored. Errors of the board itself are the board's own exception class
+(`quanser.hardware.HILError`, or `HILError` of the substitute board).
+"""
+
+from __future__ import annotations
+
+
+class HardwareError(Exception):
+    """Base class of the hardware path's own exceptions."""
+
+
+class QuanserSDKNotFoundError(HardwareError, ImportError):
+    """A real board was asked for but Quanser's Python HIL API is not installed."""
+
+
+class SafetyStopError(HardwareError):
+    """The wrapper stopped the motor (0 V written) for the reason in the subclass."""
+
+
+class AmplifierFaultError(SafetyStopError):
+    """The amplifier reports a fault (digital input 0), e.g. thermal shutdown."""
+
+
+class MotorStallError(SafetyStopError):
+    """The amplifier reports a stall error (digital input 2) and has disabled itself."""
+
+
+class ArmLimitError(SafetyStopError):
+    """The arm is farther from the centre than the wrapper's `arm_limit`."""
+
+
+class WatchdogExpiredError(SafetyStopError):
+    """The board's watchdog expired: the loop was too slow and the board zeroed its outputs."""
+
+
+class MissedSamplesError(SafetyStopError):
+    """More consecutive samples than `max_missed_samples` passed without being read."""

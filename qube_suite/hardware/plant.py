@@ -1,0 +1,124 @@
+"""The "true" parameters of the substitute board's plant.
+
+The substitute board (`_hil_sim.HIL`) integrates a Qube that differs from the
+nominal model the way a real one does. Its parameters are the nominal table of
+`qube_suite.parameters` (same long names), with the accuracy options that are
+zero in the nominal model switched on, plus the amplifier's limits, which the
+nominal model does not have. `plant_parameters(board_type, overrides)` gives the
+full set; `HIL(plant={...})` and `QubeServo2(plant={...})` take overrides by
+these names.
+
+Defaults that differ from the nominal model. Values marked *estimate* are ours,
+chosen to be physically plausible: no published identification of a
+Qube-Servo 2 gives them.
+
+- `arm_friction` = 1.0e-3 N m (*estimate*): kt times a no-load current of 24 mA,
+  typical of small coreless brushed motors. The motor then breaks away at 0.2 V,
+  a dead zone of the order of the 0.65 V amplifier deadband compensation that
+  Quanser ship with the Qube-Servo 3 (Qube-Servo 3 user manual, table 2.2).
+- `pendulum_friction` = 5.0e-5 N m (*estimate*): a free swing from 30 degrees
+  loses 0.013 rad per cycle, stops after about 25 s, and rests within one
+  encoder count of hanging.
+- `cable_stiffness` = 1.0e-3 N m/rad (*estimate*): the encoder cable pulls the
+  arm towards the centre with 1.6e-3 N m at 90 degrees (the torque of 0.3 V).
+  Le, Dang, Pham and Vo, "System identifications of a 2DOF pendulum controlled by
+  QUBE-servo and its unwanted oscillation factors", Archive of Mechanical
+  Engineering 67(4), 2020, found the encoder cable's effect not negligible.
+- `motor_inductance` = 1.16e-3 H: nominal (Qube-Servo 2 user manual); the nominal
+  MJCF leaves it out, the plant integrates L di/dt = V - R i - km dtheta.
+- `amplifier_voltage_limit` = 15 V: the amplifier's range, "maximum range is
+  +-15V" (QUARC documentation of the Qube-Servo analog output; Qube-Servo 3 user
+  manual: output voltage range, maximum).
+- `current_limit` = 1.8 A: the amplifier's peak stall current (Qube-Servo 3 user
+  manual, table 2.2; assumed the same on the Qube-Servo 2).
+- `stall_voltage` = 5 V: a stall is detected when the motor is stalled or
+  excessively slowed with more than 5 V applied (QUARC documentation of the
+  Qube-Servo's digital input 1).
+- `stall_speed` = 5 rad/s (*estimate*): "stalled or excessively slowed" taken as
+  below 4 % of the no-load speed at 5 V (119 rad/s); 0 disables stall detection.
+- `stall_time` = 3 s: a stall warning asserted for about 3 s becomes a stall
+  error and the amplifier disables itself (QUARC documentation, digital input 2).
+
+For `qube_servo3_usb` the motor rows are those of the Qube-Servo 3 user manual
+(table 2.2): Rm = 7.5 ohm, kt = km = 0.0422, Jm = 1.4e-6 kg m^2, Lm = 1.15 mH.
+A zero `motor_inductance` makes the current follow the voltage instantly, as in
+the nominal model.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+from collections.abc import Mapping
+
+from qube_suite import parameters
+
+
+@dataclasses.dataclass(frozen=True)
+class PlantParameter:
+    """A plant parameter that the nominal table does not have."""
+
+    name: str
+    default: float
+    unit: str
+    description: str
+
+
+_AMPLIFIER = (
+    PlantParameter("amplifier_voltage_limit", 15.0, "V", "largest voltage the amplifier applies"),
+    PlantParameter("current_limit", 1.8, "A", "largest current the amplifier lets through"),
+    PlantParameter("stall_voltage", 5.0, "V", "stall detection: applied voltage above which a slow motor "
+                   "counts as stalled"),
+    PlantParameter("stall_speed", 5.0, "rad/s", "stall detection: arm speed below which the motor counts as "
+                   "stalled (0 disables stall detection)"),
+    PlantParameter("stall_time", 3.0, "s", "how long a stall lasts before the amplifier disables itself"),
+)
+
+AMPLIFIER_PARAMETERS: types.MappingProxyType[str, PlantParameter] = types.MappingProxyType(
+    {p.name: p for p in _AMPLIFIER})
+"""The amplifier's parameters by long name."""
+
+HARDWARE_DEFAULTS: types.MappingProxyType[str, float] = types.MappingProxyType({
+    "arm_friction": 1.0e-3,
+    "pendulum_friction": 5.0e-5,
+    "cable_stiffness": 1.0e-3,
+})
+"""Accuracy options of the nominal table that a real Qube has (see the module docstring)."""
+
+BOARD_MOTORS: types.MappingProxyType[str, Mapping[str, float]] = types.MappingProxyType({
+    "qube_servo2_usb": types.MappingProxyType({}),
+    "qube_servo3_usb": types.MappingProxyType({
+        "motor_resistance": 7.5, "motor_torque_constant": 0.0422, "motor_back_emf": 0.0422,
+        "rotor_inertia": 1.4e-6, "motor_inductance": 1.15e-3}),
+})
+"""Motor data that differ from the nominal (Qube-Servo 2) table, by board type."""
+
+_ZERO_ALLOWED = frozenset({"arm_damping", "pendulum_damping", "arm_friction", "pendulum_friction",
+                           "cable_stiffness", "motor_inductance", "stall_speed"})
+
+
+def plant_parameters(board_type: str = "qube_servo2_usb",
+                     overrides: Mapping[str, float] | None = None) -> dict[str, float]:
+    """Every plant parameter of a `board_type` Qube, updated by `overrides`.
+
+    Raises ValueError for an unknown board type, an unknown name (listing the valid
+    ones) or a value that is not finite, negative, or zero where zero is impossible.
+    """
+    if board_type not in BOARD_MOTORS:
+        raise ValueError(f"unknown board type {board_type!r}; valid: {', '.join(BOARD_MOTORS)}")
+    values = dict(parameters.NOMINAL)
+    values.update(HARDWARE_DEFAULTS)
+    values.update(BOARD_MOTORS[board_type])
+    values.update({p.name: p.default for p in _AMPLIFIER})
+    for name, value in (overrides or {}).items():
+        if name not in values:
+            raise ValueError(f"unknown plant parameter {name!r}; valid names: {', '.join(values)}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ValueError(f"plant parameter {name!r} must be finite, got {value}")
+        if value < 0.0 or (value == 0.0 and name not in _ZERO_ALLOWED):
+            bound = ">= 0" if name in _ZERO_ALLOWED else "> 0"
+            raise ValueError(f"plant parameter {name!r} must be {bound}, got {value}")
+        values[name] = value
+    return values

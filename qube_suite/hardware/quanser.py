@@ -1,0 +1,398 @@
+"""Quanser boards behind a safe context manager: `QuanserWrapper`, `QubeServo2`, `QubeServo3`.
+
+    with QubeServo2(frequency=250) as qube:             # the substitute board
+        currents, encoders, others = qube.action([0.5])  # volts in, raw board readings out
+
+A device is a channel declaration (`Device`); the wrapper is the same for all
+devices and for the substitute board (`board="simulated"`, the default) and a
+real one (`board="qube_servo2_usb"`), which it drives through Quanser's Python HIL
+API (`quanser.hardware`, imported only then). Nothing is opened before
+`__enter__`/`open()`.
+
+Entering zeroes the motor voltage and the encoders, sets the watchdog to zero the
+voltage and disable the amplifier on expiry, enables the amplifier, starts a
+reader task at `frequency` and starts the watchdog. `action(voltages, led=None)`
+waits for the next sample, reloads the watchdog, checks safety, writes the
+voltages and returns (currents in A, encoder counts, other inputs) as the board
+reports them: raw board units and signs (`conventions.py` maps them to the
+package's angles and voltage; `estimation.StateEstimator` gives the state).
+Leaving, also after an exception or KeyboardInterrupt, writes 0 V, turns the LED
+red, disables the amplifier, stops the watchdog, stops and deletes the task and
+closes the board.
+
+Safety: voltages are clipped to +-`max_voltage`. NaN, inf, a wrong shape or a
+non-number, and an invalid LED colour, make the wrapper write 0 V and raise
+ValueError. After each sample, in this order, each of these writes 0 V and
+raises (`errors.py`): the watchdog expired (`WatchdogExpiredError`; the board has
+locked its outputs, reopen it), more than `max_missed_samples` samples passed
+since the last action (`MissedSamplesError`; `missed_samples` counts them all,
+samples before the first action excepted), an amplifier fault
+(`AmplifierFaultError`), a stall error (`MotorStallError`; the amplifier has
+disabled itself, reopen the board), the arm farther than `arm_limit` from where
+it was at `open()` (`ArmLimitError`; raised again at every action until the arm
+is back). The stall warning (digital input 1) is reported by `stall_warning`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from typing import Any, NoReturn
+
+import numpy as np
+
+from qube_suite.hardware import conventions
+from qube_suite.hardware.errors import (
+    AmplifierFaultError,
+    ArmLimitError,
+    MissedSamplesError,
+    MotorStallError,
+    QuanserSDKNotFoundError,
+    SafetyStopError,
+    WatchdogExpiredError,
+)
+from qube_suite.hardware.plant import plant_parameters
+
+SIMULATED = "simulated"
+
+SDK_HELP = (
+    "Quanser's Python HIL API (the `quanser` package) is not installed. It comes with the Quanser SDK "
+    "(https://github.com/quanser/quanser_sdk; on Ubuntu: configure Quanser's apt repository as in "
+    "https://github.com/quanser/quanser_sdk_linux, then `sudo apt-get install quanser-sdk`); install its "
+    "Python wheels into this environment with `python -m pip install --find-links <SDK>/python quanser_api` "
+    "(on Windows <SDK> is %QSDK_DIR%). Without a Qube, use board='simulated'.")
+
+
+@dataclasses.dataclass(frozen=True)
+class Device:
+    """A Quanser device's channels, as the wrapper uses them."""
+
+    board_type: str                             # QUARC card type, e.g. "qube_servo2_usb"
+    analog_outputs: tuple[int, ...]             # motor voltages (V)
+    digital_outputs: tuple[int, ...]            # amplifier enables
+    analog_inputs: tuple[int, ...]              # read every sample, e.g. motor currents (A)
+    encoder_inputs: tuple[int, ...]             # read every sample (counts)
+    other_inputs: tuple[int, ...]               # read every sample, e.g. tachometers (counts/s)
+    led_outputs: tuple[int, ...]                # LED red, green, blue (0..1)
+    amplifier_fault_inputs: tuple[int, ...]     # digital inputs: 1 = amplifier fault
+    stall_warning_inputs: tuple[int, ...]       # digital inputs: 1 = stall detected
+    stall_error_inputs: tuple[int, ...]         # digital inputs: 1 = stall error (amplifier disabled)
+    arm_encoder: int | None = 0                 # encoder channel watched by `arm_limit`
+
+    @property
+    def digital_inputs(self) -> tuple[int, ...]:
+        """All digital inputs read every sample."""
+        return tuple(sorted(set(self.amplifier_fault_inputs + self.stall_warning_inputs
+                                + self.stall_error_inputs)))
+
+
+QUBE_SERVO_2 = Device(
+    board_type="qube_servo2_usb", analog_outputs=(0,), digital_outputs=(0,), analog_inputs=(0,),
+    encoder_inputs=(0, 1), other_inputs=(14000,), led_outputs=(11000, 11001, 11002),
+    amplifier_fault_inputs=(0,), stall_warning_inputs=(1,), stall_error_inputs=(2,), arm_encoder=0)
+"""Quanser Qube-Servo 2 (QUARC card qube_servo2_usb)."""
+
+QUBE_SERVO_3 = dataclasses.replace(QUBE_SERVO_2, board_type="qube_servo3_usb")
+"""Quanser Qube-Servo 3 (QUARC card qube_servo3_usb): the same channels for what is used here."""
+
+LED_OFF_STATE = (1.0, 0.0, 0.0)
+"""The LED's colour after `close()`: red."""
+
+
+def _hil_api(simulated: bool) -> tuple[Any, Any, Any]:
+    """(HIL class, Clock, BufferOverflowMode) of the substitute or of Quanser's SDK."""
+    if simulated:
+        try:
+            from qube_suite.hardware import _hil_sim
+        except ImportError as error:
+            raise ImportError("the substitute board is a compiled extension that is missing; reinstall "
+                              "qube_suite from source (pip install -e .) to build it") from error
+        return _hil_sim.HIL, _hil_sim.Clock, _hil_sim.BufferOverflowMode
+    try:
+        from quanser.hardware import HIL, Clock
+        from quanser.hardware.enumerations import BufferOverflowMode
+    except ImportError as error:
+        raise QuanserSDKNotFoundError(SDK_HELP) from error
+    return HIL, Clock, BufferOverflowMode
+
+
+class QuanserWrapper:
+    """A Quanser device's board as a context manager that keeps the motors safe.
+
+    device: the channel declaration. board: "simulated" (the substitute board) or
+    the device's board type (a real board through Quanser's SDK). identifier: the
+    board number. frequency (Hz): the sample rate that `action` follows.
+    max_voltage (V): the clip. plant: parameters of the substitute's plant
+    (`qube_suite.hardware.plant`). realtime: the substitute follows the wall clock
+    (default False, fast); a real board always does. watchdog_timeout (s): the
+    board zeroes its outputs when no action reloads it for this long.
+    arm_limit (rad, or None): the largest arm angle from the start.
+    max_missed_samples (or None): the largest gap between two actions, in samples.
+    """
+
+    def __init__(self, device: Device, board: str = SIMULATED, identifier: str = "0", *,
+                 frequency: float = 250.0, max_voltage: float = 10.0,
+                 plant: dict[str, float] | None = None, realtime: bool | None = None,
+                 watchdog_timeout: float = 0.1, arm_limit: float | None = math.radians(120.0),
+                 max_missed_samples: int | None = 10):
+        if board not in (SIMULATED, device.board_type):
+            raise ValueError(f"board must be {SIMULATED!r} or {device.board_type!r}, got {board!r}")
+        simulated = board == SIMULATED
+        if not simulated and plant is not None:
+            raise ValueError("plant= sets the substitute board's plant; a real board has its own physics")
+        if not simulated and realtime is False:
+            raise ValueError("a real board always runs in real time")
+        for name, value in (("frequency", frequency), ("max_voltage", max_voltage),
+                            ("watchdog_timeout", watchdog_timeout)):
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be positive, got {value}")
+        if arm_limit is not None and not (math.isfinite(arm_limit) and arm_limit > 0):
+            raise ValueError(f"arm_limit must be positive or None, got {arm_limit}")
+        if max_missed_samples is not None and max_missed_samples < 0:
+            raise ValueError(f"max_missed_samples must be >= 0 or None, got {max_missed_samples}")
+        if simulated:
+            plant_parameters(device.board_type, plant)  # a misspelt name fails now, not at open()
+        self.device = device
+        self.board_name = board
+        self.identifier = identifier
+        self.frequency = float(frequency)
+        self.max_voltage = float(max_voltage)
+        self.plant = None if plant is None else dict(plant)
+        self.realtime = bool(realtime) if simulated else True
+        self.watchdog_timeout = float(watchdog_timeout)
+        self.arm_limit = arm_limit
+        self.max_missed_samples = max_missed_samples
+        self.missed_samples = 0
+        self.stall_warning = False
+        self._board: Any = None
+        self._task: Any = None
+        self._open = False
+
+        d = device
+        self._channels = {name: np.array(getattr(d, name), dtype=np.uint32) for name in (
+            "analog_outputs", "digital_outputs", "analog_inputs", "encoder_inputs", "other_inputs",
+            "led_outputs", "digital_inputs")}
+        self._currents = np.zeros(len(d.analog_inputs))
+        self._encoders = np.zeros(len(d.encoder_inputs), dtype=np.int32)
+        self._digitals = np.zeros(len(d.digital_inputs), dtype=np.int8)
+        self._others = np.zeros(len(d.other_inputs))
+        self._zero_volts = np.zeros(len(d.analog_outputs))
+        self._volts = np.zeros(len(d.analog_outputs))
+        self._fault_at = [d.digital_inputs.index(c) for c in d.amplifier_fault_inputs]
+        self._warning_at = [d.digital_inputs.index(c) for c in d.stall_warning_inputs]
+        self._stall_at = [d.digital_inputs.index(c) for c in d.stall_error_inputs]
+        self._arm_at = None if d.arm_encoder is None else d.encoder_inputs.index(d.arm_encoder)
+        self._overflows_seen: int | None = None
+
+    # -- opening and closing ---------------------------------------------------------------
+
+    @property
+    def board(self) -> Any:
+        """The HIL object in use (also after `close()`, for inspection); None before `open()`."""
+        return self._board
+
+    @property
+    def is_open(self) -> bool:
+        """True between `open()` and `close()`."""
+        return self._open
+
+    def __enter__(self) -> QuanserWrapper:
+        self.open()
+        return self
+
+    def __exit__(self, exc_type, exc, traceback) -> None:
+        self.close()
+
+    def open(self) -> None:
+        """Open the board, zero it, enable the amplifier, start the reader task and the watchdog."""
+        if self._open:
+            raise RuntimeError("the board is already open")
+        simulated = self.board_name == SIMULATED
+        hil_class, clock, overflow_mode = _hil_api(simulated)
+        board = hil_class(plant=self.plant, realtime=self.realtime) if simulated else hil_class()
+        board.open(self.device.board_type, self.identifier)
+        self._board, self._task, self._open = board, None, True
+        self.missed_samples, self.stall_warning, self._overflows_seen = 0, False, None
+        c = self._channels
+        try:
+            board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
+            board.set_encoder_counts(c["encoder_inputs"], len(c["encoder_inputs"]),
+                                     np.zeros(len(c["encoder_inputs"]), dtype=np.int32))
+            board.watchdog_set_analog_expiration_state(c["analog_outputs"], len(c["analog_outputs"]),
+                                                       self._zero_volts)
+            board.watchdog_set_digital_expiration_state(  # 0 = DigitalState.LOW: amplifiers disabled
+                c["digital_outputs"], len(c["digital_outputs"]),
+                np.zeros(len(c["digital_outputs"]), dtype=np.int32))
+            board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
+                                np.ones(len(c["digital_outputs"]), dtype=np.int8))
+            self._task = board.task_create_reader(
+                1, c["analog_inputs"], len(c["analog_inputs"]), c["encoder_inputs"], len(c["encoder_inputs"]),
+                c["digital_inputs"], len(c["digital_inputs"]), c["other_inputs"], len(c["other_inputs"]))
+            board.task_set_buffer_overflow_mode(self._task, overflow_mode.OVERWRITE_ON_OVERFLOW)
+            board.task_start(self._task, clock.HARDWARE_CLOCK_0, self.frequency, hil_class.INFINITE)
+            board.watchdog_start(self.watchdog_timeout)
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        """Stop the motor and close the board: every step is tried; the first failure is raised after."""
+        if not self._open:
+            return
+        board, task, c = self._board, self._task, self._channels
+        errors: list[BaseException] = []
+
+        def attempt(function, *args):
+            try:
+                return function(*args)
+            except BaseException as error:  # a second Ctrl-C must not skip the remaining steps
+                errors.append(error)
+                return None
+
+        if not attempt(board.watchdog_is_expired):  # an expired watchdog has already zeroed the outputs
+            attempt(board.write_analog, c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
+            attempt(board.write_other, c["led_outputs"], len(c["led_outputs"]), np.array(LED_OFF_STATE))
+            attempt(board.write_digital, c["digital_outputs"], len(c["digital_outputs"]),
+                    np.zeros(len(c["digital_outputs"]), dtype=np.int8))
+        attempt(board.watchdog_stop)
+        if task is not None:
+            attempt(board.task_stop, task)
+            attempt(board.task_delete, task)
+        attempt(board.close)
+        self._task, self._open = None, False
+        if errors:
+            raise errors[0]
+
+    # -- the control loop ------------------------------------------------------------------
+
+    def action(self, voltages: float | Sequence[float] | np.ndarray,
+               led: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Wait for the next sample, check safety, apply `voltages` (V) and optionally an LED colour.
+
+        Returns (currents, encoders, others) of that sample as new arrays, in board
+        units and signs. Raises ValueError or a `SafetyStopError` after writing 0 V.
+        """
+        board = self._require_open()
+        volts = self._checked_voltages(voltages)
+        rgb = None if led is None else self._checked_led(led)
+        board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
+        if not board.watchdog_reload():
+            self._stop(WatchdogExpiredError(
+                f"the watchdog expired: no action for {self.watchdog_timeout} s; the board zeroed its "
+                "outputs and must be reopened"))
+        self._check_missed_samples(board)
+        self._check_amplifier()
+        self._check_arm()
+        board.write_analog(self._channels["analog_outputs"], len(volts), volts)
+        if rgb is not None:
+            board.write_other(self._channels["led_outputs"], len(rgb), rgb)
+        return self._currents.copy(), self._encoders.copy(), self._others.copy()
+
+    def reset_encoders(self, channels: Sequence[int] | None = None) -> None:
+        """Make encoder `channels` (default: all read) count from 0 at their present positions."""
+        board = self._require_open()
+        chosen = np.array(self.device.encoder_inputs if channels is None else channels, dtype=np.uint32)
+        unknown = set(chosen.tolist()) - set(self.device.encoder_inputs)
+        if unknown:
+            raise ValueError(f"encoder channels {sorted(unknown)} are not read; "
+                             f"valid: {self.device.encoder_inputs}")
+        board.set_encoder_counts(chosen, len(chosen), np.zeros(len(chosen), dtype=np.int32))
+
+    # -- safety ----------------------------------------------------------------------------
+
+    def _require_open(self) -> Any:
+        if not self._open:
+            raise RuntimeError("the board is not open: use `with QubeServo2(...) as qube:` or call open()")
+        return self._board
+
+    def _zero_voltage(self) -> None:
+        """Write 0 V unless an expired watchdog has already done so (and locked the outputs)."""
+        board = self._board
+        if not board.watchdog_is_expired():
+            board.write_analog(self._channels["analog_outputs"], len(self._zero_volts), self._zero_volts)
+
+    def _stop(self, error: SafetyStopError) -> NoReturn:
+        self._zero_voltage()
+        raise error
+
+    def _refuse(self, message: str) -> NoReturn:
+        self._zero_voltage()
+        raise ValueError(message)
+
+    def _checked_voltages(self, voltages) -> np.ndarray:
+        n = len(self._volts)
+        try:
+            values = np.asarray(voltages, dtype=np.float64)
+        except (TypeError, ValueError):
+            self._refuse(f"voltages must be numbers, got {voltages!r}")
+        if values.shape == () and n == 1:
+            values = values.reshape(1)
+        if values.shape != (n,):
+            self._refuse(f"voltages must have shape ({n},), got {values.shape}")
+        limit = self.max_voltage
+        for j, value in enumerate(values.tolist()):
+            if not math.isfinite(value):
+                self._refuse(f"voltages must be finite, got {values}")
+            self._volts[j] = -limit if value < -limit else limit if value > limit else value
+        return self._volts
+
+    def _checked_led(self, led) -> np.ndarray:
+        try:
+            rgb = np.asarray(led, dtype=np.float64)
+        except (TypeError, ValueError):
+            self._refuse(f"led must be {len(self.device.led_outputs)} numbers in [0, 1], got {led!r}")
+        if rgb.shape != (len(self.device.led_outputs),) or not (np.isfinite(rgb).all()
+                                                               and (rgb >= 0).all() and (rgb <= 1).all()):
+            self._refuse(f"led must be {len(self.device.led_outputs)} numbers in [0, 1], got {led!r}")
+        return rgb
+
+    def _check_missed_samples(self, board) -> None:
+        overflows = board.task_get_buffer_overflows(self._task)
+        missed = 0 if self._overflows_seen is None else overflows - self._overflows_seen
+        self._overflows_seen = overflows
+        self.missed_samples += missed
+        if self.max_missed_samples is not None and missed > self.max_missed_samples:
+            self._stop(MissedSamplesError(
+                f"{missed} samples at {self.frequency:g} Hz passed between two actions (at most "
+                f"{self.max_missed_samples} allowed); {self.missed_samples} missed since open()"))
+
+    def _check_amplifier(self) -> None:
+        flags = self._digitals.tolist()
+        self.stall_warning = any(flags[i] for i in self._warning_at)
+        if any(flags[i] for i in self._fault_at):
+            self._stop(AmplifierFaultError("the amplifier reports a fault (e.g. overheating)"))
+        if any(flags[i] for i in self._stall_at):
+            self._stop(MotorStallError("the amplifier reports a motor stall and has disabled itself; reopen "
+                                       "the board once the motor is free"))
+
+    def _check_arm(self) -> None:
+        if self.arm_limit is None or self._arm_at is None:
+            return
+        angle = abs(conventions.arm_angle(int(self._encoders[self._arm_at])))
+        if angle > self.arm_limit:
+            self._stop(ArmLimitError(
+                f"the arm is {math.degrees(angle):.0f} degrees from where it was at open(), beyond "
+                f"arm_limit = {math.degrees(self.arm_limit):.0f} degrees"))
+
+
+class QubeServo2(QuanserWrapper):
+    """Quanser Qube-Servo 2: one motor, arm and pendulum encoders, tachometer, LED.
+
+    QubeServo2(frequency=250, max_voltage=10, board="simulated" | "qube_servo2_usb",
+    identifier="0", plant=None, realtime=None, ...): see `QuanserWrapper`.
+    """
+
+    def __init__(self, frequency: float = 250.0, max_voltage: float = 10.0, *, board: str = SIMULATED,
+                 identifier: str = "0", **options: Any):
+        super().__init__(QUBE_SERVO_2, board, identifier, frequency=frequency, max_voltage=max_voltage,
+                         **options)
+
+
+class QubeServo3(QuanserWrapper):
+    """Quanser Qube-Servo 3, on the same channels (board="simulated" | "qube_servo3_usb")."""
+
+    def __init__(self, frequency: float = 250.0, max_voltage: float = 10.0, *, board: str = SIMULATED,
+                 identifier: str = "0", **options: Any):
+        super().__init__(QUBE_SERVO_3, board, identifier, frequency=frequency, max_voltage=max_voltage,
+                         **options)
