@@ -101,4 +101,11 @@ class Environment(control.Environment):
             discount = 1.0
         if discount is not None:
             self._reset_next_step = True
+            physics.end_episode()
         return reward, discount
+
+    def close(self) -> None:
+        """Release the domain: on hardware, stop the motor and close the board."""
+        close = getattr(self._physics, "close", None)
+        if close is not None:
+            close()

@@ -15,8 +15,9 @@ from qube_suite.tasks import SUITE as _TASKS
 
 _DOMAIN_MODULES = {
     "qube": "qube_suite.domains.qube",
+    "qube_hardware": "qube_suite.domains.qube_hardware",
 }
-"""Domain name -> module with `make_physics(control_frequency, parameters)`."""
+"""Domain name -> module with `make_physics(control_frequency, **domain_kwargs)`."""
 
 ENVIRONMENT_KWARGS = ("control_frequency", "time_limit")
 """Keys `environment_kwargs` may hold."""
@@ -43,16 +44,21 @@ FOLLOW = _tagged("follow")
 
 def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None = None,
          environment_kwargs: Mapping[str, Any] | None = None,
-         randomization: Any = None) -> Environment:
+         randomization: Any = None, domain_kwargs: Mapping[str, Any] | None = None) -> Environment:
     """A `dm_env` environment for `task_name` on `domain_name`.
 
     Args:
-        domain_name: "qube" (MuJoCo simulation).
+        domain_name: "qube" (MuJoCo simulation) or "qube_hardware" (a Quanser
+            board: the compiled substitute by default, or a real Qube).
         task_name: one of `TASKS_BY_DOMAIN[domain_name]`.
         task_kwargs: passed to the task: `random` (seed), `voltage_limit` (V),
             `observation` ("state" or "trig").
         environment_kwargs: `control_frequency` (Hz, default 250) and
             `time_limit` (s, default 8.192).
+        domain_kwargs: passed to the domain: for "qube", `parameters` (physical
+            parameters by long name); for "qube_hardware", `board`, `plant`,
+            `realtime`, `max_voltage`, `reset_voltage_limit`, `reset_timeout`,
+            `identifier` (see `qube_suite.domains.qube_hardware.Physics`).
         randomization: domain randomization; not available in this release, so
             anything but None raises ValueError.
 
@@ -75,5 +81,5 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
     task = _TASKS[task_name](**dict(task_kwargs or {}))
     domain = importlib.import_module(_DOMAIN_MODULES[domain_name])
     frequency = environment_kwargs.get("control_frequency", DEFAULT_CONTROL_FREQUENCY)
-    physics = domain.make_physics(control_frequency=frequency)
+    physics = domain.make_physics(control_frequency=frequency, **dict(domain_kwargs or {}))
     return Environment(physics, task, **environment_kwargs)

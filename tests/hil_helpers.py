@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import sys
+import types
+
 import numpy as np
 
 from qube_suite.hardware import _hil_sim, conventions
@@ -51,3 +54,29 @@ class Rig:
             self.read()
             states.append(self.board.true_state())
         return np.array(states)
+
+
+def fake_quanser_sdk(monkeypatch) -> dict:
+    """Install a `quanser.hardware` whose HIL is the substitute board; log what is made and opened."""
+    log = {"created": [], "opened": []}
+
+    class RecordingHIL(_hil_sim.HIL):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            log["created"].append(self)
+
+        def open(self, card_type, card_identifier):
+            log["opened"].append((card_type, card_identifier))
+            super().open(card_type, card_identifier)
+
+    quanser = types.ModuleType("quanser")
+    hardware = types.ModuleType("quanser.hardware")
+    enumerations = types.ModuleType("quanser.hardware.enumerations")
+    hardware.HIL, hardware.HILError, hardware.Clock = RecordingHIL, _hil_sim.HILError, _hil_sim.Clock
+    enumerations.BufferOverflowMode = _hil_sim.BufferOverflowMode
+    quanser.hardware, hardware.enumerations = hardware, enumerations
+    monkeypatch.setitem(sys.modules, "quanser", quanser)
+    monkeypatch.setitem(sys.modules, "quanser.hardware", hardware)
+    monkeypatch.setitem(sys.modules, "quanser.hardware.enumerations", enumerations)
+    log["class"] = RecordingHIL
+    return log

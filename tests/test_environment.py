@@ -15,7 +15,9 @@ def test_suite_lists_every_task_with_tags():
     assert sorted(tasks) == sorted([
         "swingup", "swingup_sparse", "balance", "balance_sparse", "dampen", "dampen_sparse",
         "swingup_follow", "swingup_follow_sparse", "balance_follow", "balance_follow_sparse", "rotor"])
-    assert len(suite.ALL_TASKS) == 11
+    assert set(suite.TASKS_BY_DOMAIN) == {"qube", "qube_hardware"}
+    assert suite.TASKS_BY_DOMAIN["qube_hardware"] == tasks
+    assert len(suite.ALL_TASKS) == 22
     assert {task for _, task in suite.SPARSE} == {t for t in tasks if t.endswith("sparse")}
     assert {task for _, task in suite.FOLLOW} == {t for t in tasks if "follow" in t}
     assert {task for _, task in suite.BENCHMARKING} == {
@@ -111,7 +113,7 @@ def test_trig_observation():
 
 
 @pytest.mark.parametrize("domain, task, message", [
-    ("cube", "swingup", "valid domains: qube"),
+    ("cube", "swingup", "valid domains: qube, qube_hardware"),
     ("qube", "swing_up", "valid tasks: .*swingup"),
 ])
 def test_unknown_names_list_valid_ones(domain, task, message):

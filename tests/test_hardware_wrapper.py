@@ -3,9 +3,9 @@
 import math
 import sys
 import time
-import types
 
 import pytest
+from hil_helpers import fake_quanser_sdk
 
 from qube_suite.hardware import (
     AmplifierFaultError,
@@ -16,7 +16,6 @@ from qube_suite.hardware import (
     QubeServo2,
     QubeServo3,
     WatchdogExpiredError,
-    _hil_sim,
     conventions,
 )
 
@@ -28,28 +27,7 @@ def assert_motor_off(board):
 @pytest.fixture
 def fake_sdk(monkeypatch):
     """Quanser's `quanser.hardware` replaced by the substitute board, recording what is made and opened."""
-    log = {"created": [], "opened": []}
-
-    class RecordingHIL(_hil_sim.HIL):
-        def __init__(self, *args, **kwargs):
-            super().__init__(*args, **kwargs)
-            log["created"].append(self)
-
-        def open(self, card_type, card_identifier):
-            log["opened"].append((card_type, card_identifier))
-            super().open(card_type, card_identifier)
-
-    quanser = types.ModuleType("quanser")
-    hardware = types.ModuleType("quanser.hardware")
-    enumerations = types.ModuleType("quanser.hardware.enumerations")
-    hardware.HIL, hardware.HILError, hardware.Clock = RecordingHIL, _hil_sim.HILError, _hil_sim.Clock
-    enumerations.BufferOverflowMode = _hil_sim.BufferOverflowMode
-    quanser.hardware, hardware.enumerations = hardware, enumerations
-    monkeypatch.setitem(sys.modules, "quanser", quanser)
-    monkeypatch.setitem(sys.modules, "quanser.hardware", hardware)
-    monkeypatch.setitem(sys.modules, "quanser.hardware.enumerations", enumerations)
-    log["class"] = RecordingHIL
-    return log
+    return fake_quanser_sdk(monkeypatch)
 
 
 def test_constructing_opens_nothing(fake_sdk):

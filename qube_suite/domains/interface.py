@@ -54,3 +54,6 @@ class QubePhysics(Protocol):
 
     def step(self, nstep: int = 1) -> None:
         """Advance by `nstep` timesteps with the voltage held."""
+
+    def end_episode(self) -> None:
+        """The episode is over: hardware stops driving the motor until the next reset."""

@@ -211,6 +211,9 @@ class Physics(dm_mujoco.Physics):
         """Simulated time since the episode started (s)."""
         return self._data_ptr.time
 
+    def end_episode(self) -> None:
+        """Nothing to stop in simulation."""
+
     def forward(self) -> None:
         """Recompute derived quantities after the state was changed directly, then measure."""
         super().forward()

@@ -168,6 +168,7 @@ class QuanserWrapper:
         self._board: Any = None
         self._task: Any = None
         self._open = False
+        self._idle = False
 
         d = device
         self._channels = {name: np.array(getattr(d, name), dtype=np.uint32) for name in (
@@ -212,7 +213,7 @@ class QuanserWrapper:
         hil_class, clock, overflow_mode = _hil_api(simulated)
         board = hil_class(plant=self.plant, realtime=self.realtime) if simulated else hil_class()
         board.open(self.device.board_type, self.identifier)
-        self._board, self._task, self._open = board, None, True
+        self._board, self._task, self._open, self._idle = board, None, True, False
         self.missed_samples, self.stall_warning, self._overflows_seen = 0, False, None
         c = self._channels
         try:
@@ -274,6 +275,8 @@ class QuanserWrapper:
         units and signs. Raises ValueError or a `SafetyStopError` after writing 0 V.
         """
         board = self._require_open()
+        if self._idle:
+            raise RuntimeError("the board is idle: call resume() before action()")
         volts = self._checked_voltages(voltages)
         rgb = None if led is None else self._checked_led(led)
         board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
@@ -288,6 +291,40 @@ class QuanserWrapper:
         if rgb is not None:
             board.write_other(self._channels["led_outputs"], len(rgb), rgb)
         return self._currents.copy(), self._encoders.copy(), self._others.copy()
+
+    def idle(self) -> None:
+        """Stop driving until `resume()`: 0 V, amplifier disabled, watchdog stopped.
+
+        For pauses between episodes, when no action comes for longer than the
+        watchdog allows; the reader task keeps sampling and the encoders keep counting.
+        """
+        board = self._require_open()
+        c = self._channels
+        if board.watchdog_is_expired():
+            board.watchdog_clear()
+        board.watchdog_stop()
+        board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
+        board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
+                            np.zeros(len(c["digital_outputs"]), dtype=np.int8))
+        self._idle = True
+
+    def resume(self) -> None:
+        """Drive again after `idle()`: enable the amplifier and restart the watchdog; samples
+        that passed while idle do not count as missed."""
+        board = self._require_open()
+        if not self._idle:
+            return
+        c = self._channels
+        self._overflows_seen = None
+        board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
+                            np.ones(len(c["digital_outputs"]), dtype=np.int8))
+        board.watchdog_start(self.watchdog_timeout)
+        self._idle = False
+
+    @property
+    def is_idle(self) -> bool:
+        """True between `idle()` and `resume()`."""
+        return self._idle
 
     def reset_encoders(self, channels: Sequence[int] | None = None) -> None:
         """Make encoder `channels` (default: all read) count from 0 at their present positions."""

@@ -12,30 +12,44 @@ from qube_suite.wrappers.gym_env import QubeEnv
 NAMESPACE = "QubeSuite"
 
 
-def gymnasium_id(task_name: str) -> str:
-    """`QubeSuite/SwingupSparse-v0` for "swingup_sparse"."""
-    return f"{NAMESPACE}/{''.join(part.capitalize() for part in task_name.split('_'))}-v0"
+DOMAIN_SUFFIXES = {"qube": "", "qube_hardware": "Hardware"}
+"""Domain name -> suffix of its Gymnasium ids."""
+
+
+def gymnasium_id(task_name: str, domain_name: str = "qube") -> str:
+    """`QubeSuite/SwingupSparse-v0` for ("swingup_sparse", "qube"); `...Hardware-v0` on hardware."""
+    task = "".join(part.capitalize() for part in task_name.split("_"))
+    return f"{NAMESPACE}/{task}{DOMAIN_SUFFIXES[domain_name]}-v0"
 
 
 GYMNASIUM_IDS: dict[str, str] = {gymnasium_id(task): task for task in suite.TASKS_BY_DOMAIN["qube"]}
-"""Gymnasium id -> suite task name."""
+"""Gymnasium id -> suite task name, simulated domain."""
+
+HARDWARE_GYMNASIUM_IDS: dict[str, str] = {
+    gymnasium_id(task, "qube_hardware"): task for task in suite.TASKS_BY_DOMAIN["qube_hardware"]}
+"""Gymnasium id -> suite task name, hardware domain."""
 
 
 def make_env(task: str, domain: str = "qube", render_mode: str | None = None, randomization: Any = None,
-             width: int = 640, height: int = 480, camera: str = "front_oblique", **kwargs) -> QubeEnv:
+             domain_kwargs: dict[str, Any] | None = None, width: int = 640, height: int = 480,
+             camera: str = "front_oblique", **kwargs) -> QubeEnv:
     """Entry point of the registered ids.
 
     `kwargs` go to the environment (`control_frequency`, `time_limit`) or the task
-    (`voltage_limit`, `observation`, ...).
+    (`voltage_limit`, `observation`, ...); `domain_kwargs` as in `suite.load`.
     """
     environment_kwargs = {key: kwargs.pop(key) for key in suite.ENVIRONMENT_KWARGS if key in kwargs}
     environment = suite.load(domain, task, task_kwargs=kwargs, environment_kwargs=environment_kwargs,
-                             randomization=randomization)
+                             randomization=randomization, domain_kwargs=domain_kwargs)
     return QubeEnv(environment, render_mode=render_mode, width=width, height=height, camera=camera)
 
 
 def register_environments() -> None:
-    """Register every id in `GYMNASIUM_IDS` (once)."""
+    """Register every id of `GYMNASIUM_IDS` and `HARDWARE_GYMNASIUM_IDS` (once)."""
     for env_id, task in GYMNASIUM_IDS.items():
         if env_id not in gymnasium.registry:
             gymnasium.register(env_id, entry_point=make_env, kwargs={"task": task})
+    for env_id, task in HARDWARE_GYMNASIUM_IDS.items():
+        if env_id not in gymnasium.registry:
+            gymnasium.register(env_id, entry_point=make_env, nondeterministic=True,
+                               kwargs={"task": task, "domain": "qube_hardware"})

@@ -1,0 +1,254 @@
+"""The hardware Qube: the domain interface over a Quanser board.
+
+`suite.load("qube_hardware", task)` runs a task on a Qube-Servo 2 driven through
+`qube_suite.hardware.QubeServo2`: by default the compiled substitute board and
+plant (`board="simulated"`, fast: it advances simulated time only); with
+`domain_kwargs={"board": "qube_servo2_usb"}` a real Qube through Quanser's SDK,
+paced by its hardware clock. Every task in `qube_suite.tasks` runs unchanged.
+
+What differs from the simulated domain, as on a real Qube:
+
+* the board is opened at the first reset (never by a constructor) and closed by
+  `close()` / the environment's `close()`; between episodes it idles (0 V,
+  amplifier off);
+* angles are the quantised encoder angles; velocities come from Quanser's
+  50 s/(s + 50) filter (`hardware.estimation`), so they lag by about 20 ms;
+* a step reads the board's next sample and then writes the voltage, as the
+  Quanser toolkits do: a voltage takes effect one sample after the observation
+  it answers (the simulated domain has no such latency);
+* starts are reached by reset controllers (`qube_suite.baselines`), with the LED
+  yellow while they drive: "settle hanging" (dampen), "swing up and hold"
+  (swing-up with LQR balance) for starts near upright, and for other starts
+  (dampen's arbitrary swing) settle, then pump energy until the pendulum swings
+  with the energy of the requested start. A start the controllers cannot reach
+  within `reset_timeout` raises `ResetError`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from dm_control.rl import control
+
+from qube_suite import baselines, parameters
+from qube_suite.angles import wrap_angle
+from qube_suite.hardware import conventions
+from qube_suite.hardware.errors import HardwareError
+from qube_suite.hardware.estimation import StateEstimator
+from qube_suite.hardware.quanser import SIMULATED, QubeServo2
+
+RESET_LED = (1.0, 1.0, 0.0)
+"""Yellow: a reset controller is driving."""
+
+DEFAULT_RESET_VOLTAGE_LIMIT = 6.0
+"""Largest voltage (V) the reset controllers use."""
+
+DEFAULT_RESET_TIMEOUT = 30.0
+"""Longest a reset may take (s of board time)."""
+
+NEAR_GOAL = math.radians(30.0)
+"""Starts within 30 degrees of upright are reached by swing-up and hold; within 30
+degrees of hanging, by settling; others by pumping energy."""
+
+HOLD_TIME = 0.5
+"""A reset is done when its condition has held this long (s)."""
+
+
+class ResetError(HardwareError):
+    """A reset controller did not reach the episode's start in time."""
+
+
+class Physics(control.Physics):
+    """A Qube on a Quanser board, through the domain interface (`domains.interface.QubePhysics`).
+
+    Args:
+        control_frequency: sample rate of the board (Hz); one `step` is one sample.
+        board: "simulated" (the substitute) or "qube_servo2_usb" (a real Qube).
+        plant: parameters of the substitute's plant (`qube_suite.hardware.plant`).
+        realtime: pace the substitute by the wall clock (a real board always is).
+        max_voltage: the wrapper's voltage clip (V).
+        reset_voltage_limit: largest voltage of the reset controllers (V).
+        reset_timeout: longest a reset may take (s).
+        identifier: the board's number.
+    """
+
+    def __init__(self, control_frequency: float = 250.0, board: str = SIMULATED,
+                 plant: dict[str, float] | None = None, realtime: bool | None = None,
+                 max_voltage: float = 10.0, reset_voltage_limit: float = DEFAULT_RESET_VOLTAGE_LIMIT,
+                 reset_timeout: float = DEFAULT_RESET_TIMEOUT, identifier: str = "0"):
+        if not (0.0 < reset_voltage_limit <= max_voltage):
+            raise ValueError(f"reset_voltage_limit must be in (0, max_voltage={max_voltage}] V, "
+                             f"got {reset_voltage_limit}")
+        if not (math.isfinite(reset_timeout) and reset_timeout > 0.0):
+            raise ValueError(f"reset_timeout must be a positive number of seconds, got {reset_timeout}")
+        self.qube = QubeServo2(frequency=control_frequency, max_voltage=max_voltage, board=board,
+                               identifier=identifier, plant=plant, realtime=realtime)
+        self._frequency = float(control_frequency)
+        self._estimator = StateEstimator(control_frequency)
+        self._reset_voltage_limit = float(reset_voltage_limit)
+        self._reset_timeout = float(reset_timeout)
+        self._controllers: dict[str, baselines.Controller] = {}
+        self._voltage = 0.0
+        self._led: tuple[float, float, float] = RESET_LED
+        self._measured: tuple[float, float, float, float] = (0.0, math.pi, 0.0, 0.0)
+        self._samples = 0
+        self._episode_start = 0
+        self.currents = np.zeros(1)
+        self.encoders = np.zeros(2, dtype=np.int32)
+        self.others = np.zeros(1)
+
+    # -- the domain interface ---------------------------------------------------------------
+
+    def arm_angle(self) -> float:
+        """Encoder arm angle theta (rad) in (-pi, pi]."""
+        return self._measured[0]
+
+    def pendulum_angle(self) -> float:
+        """Encoder pendulum angle alpha (rad) in (-pi, pi], 0 = upright."""
+        return self._measured[1]
+
+    def arm_velocity(self) -> float:
+        """Filtered d theta / dt (rad/s)."""
+        return self._measured[2]
+
+    def pendulum_velocity(self) -> float:
+        """Filtered d alpha / dt (rad/s)."""
+        return self._measured[3]
+
+    def qube_state(self) -> np.ndarray:
+        """Measured [theta, alpha, dtheta, dalpha] (rad, rad/s)."""
+        return np.array(self._measured)
+
+    def voltage(self) -> float:
+        """Motor voltage (V) commanded by the last `set_voltage`."""
+        return self._voltage
+
+    def set_voltage(self, volts: float) -> None:
+        """Command `volts` (V); written to the board at the next `step`."""
+        self._voltage = volts
+
+    def motor_current(self) -> float:
+        """Motor current (A) measured by the board at the last sample."""
+        return conventions.motor_current(float(self.currents[0]))
+
+    def set_led(self, rgb: Sequence[float]) -> None:
+        """Show (r, g, b) on the Qube's LED from the next sample on."""
+        self._led = (float(rgb[0]), float(rgb[1]), float(rgb[2]))
+
+    def led(self) -> tuple[float, float, float]:
+        """The LED colour being shown."""
+        return self._led
+
+    def time(self) -> float:
+        """Board time since the episode started (s)."""
+        return (self._samples - self._episode_start) / self._frequency
+
+    def timestep(self) -> float:
+        """One sample (s)."""
+        return 1.0 / self._frequency
+
+    def step(self, nstep: int = 1) -> None:
+        """Wait for the next `nstep` samples, writing the commanded voltage at each."""
+        for _ in range(nstep):
+            self._sample(self._voltage)
+
+    def reset(self) -> None:
+        """Get the board ready for an episode: open it the first time, else wake it from idle."""
+        if not self.qube.is_open:
+            self.qube.open()
+            self._estimator.reset()
+            self._sample(0.0)
+        elif self.qube.is_idle:
+            self.qube.resume()
+        self._voltage = 0.0
+
+    def after_reset(self) -> None:
+        """Nothing to do: `reset_to` leaves the board at the episode's start."""
+
+    def reset_to(self, state: Sequence[float]) -> None:
+        """Drive the Qube to the episode's start with the reset controllers (see the module docstring)."""
+        target_alpha = wrap_angle(float(state[1]))
+        self._led = RESET_LED
+        if abs(target_alpha) <= NEAR_GOAL:
+            self._drive("swingup", self._held_upright, "swing up and hold upright")
+        else:
+            self._drive("dampen", self._hanging_at_rest, "settle hanging")
+            if math.pi - abs(target_alpha) > NEAR_GOAL:
+                energy = _pendulum_energy(target_alpha, float(state[3]))
+                self._drive("swingup", lambda s: _pendulum_energy(s[1], s[3]) >= energy,
+                            "pump the swing", hold=0.0)
+        self._voltage = 0.0
+        self._episode_start = self._samples
+
+    def end_episode(self) -> None:
+        """Stop driving until the next reset: 0 V, amplifier disabled."""
+        if self.qube.is_open and not self.qube.is_idle:
+            self.qube.idle()
+
+    def close(self) -> None:
+        """Stop the motor and close the board."""
+        self.qube.close()
+        for controller in self._controllers.values():
+            controller.close()
+        self._controllers.clear()
+
+    # -- helpers ----------------------------------------------------------------------------
+
+    def _sample(self, volts: float) -> None:
+        self.currents, self.encoders, self.others = self.qube.action(
+            [conventions.board_voltage(volts)], led=self._led)
+        theta, alpha, dtheta, dalpha = self._estimator(self.encoders).tolist()
+        self._measured = (theta, alpha, dtheta, dalpha)
+        self._samples += 1
+
+    def _controller(self, name: str) -> baselines.Controller:
+        if name not in self._controllers:
+            self._controllers[name] = baselines.make(name, control_frequency=self._frequency,
+                                                     voltage_limit=self._reset_voltage_limit)
+        return self._controllers[name]
+
+    def _drive(self, name: str, done: Callable[[tuple], bool], purpose: str, hold: float = HOLD_TIME) -> None:
+        """Run controller `name` until `done(state)` has held for `hold` s (at least one sample)."""
+        controller = self._controller(name)
+        controller.reset()
+        needed = max(1, round(hold * self._frequency))
+        held = 0
+        for _ in range(round(self._reset_timeout * self._frequency)):
+            held = held + 1 if done(self._measured) else 0
+            if held >= needed:
+                return
+            self._sample(controller(np.array(self._measured)))
+        self._sample(0.0)
+        raise ResetError(f"reset failed: could not {purpose} within {self._reset_timeout:g} s "
+                         f"(state {np.round(self._measured, 3).tolist()})")
+
+    @staticmethod
+    def _held_upright(state: tuple) -> bool:
+        theta, alpha, dtheta, dalpha = state
+        return abs(alpha) < math.radians(5) and abs(theta) < math.radians(15) and abs(dalpha) < 1.0
+
+    @staticmethod
+    def _hanging_at_rest(state: tuple) -> bool:
+        theta, alpha, dtheta, dalpha = state
+        return (math.pi - abs(alpha) < math.radians(3) and abs(theta) < math.radians(10)
+                and abs(dalpha) < 0.3 and abs(dtheta) < 0.3)
+
+
+def _pendulum_energy(alpha: float, dalpha: float) -> float:
+    """The pendulum's energy about its pivot (J), 0 hanging at rest."""
+    p = parameters.NOMINAL
+    half_length = p["pendulum_length"] / 2.0
+    mass = p["pendulum_mass"]
+    inertia = parameters.pendulum_inertia(mass, p["pendulum_length"]) + mass * half_length**2
+    return 0.5 * inertia * dalpha**2 + mass * p["gravity"] * half_length * (1.0 + math.cos(alpha))
+
+
+def make_physics(control_frequency: float = 250.0, **options: Any) -> Physics:
+    """A Qube on a board for control at `control_frequency` (Hz); `options`: see `Physics`."""
+    from qube_suite.domains.qube import check_control_frequency
+
+    check_control_frequency(control_frequency)
+    return Physics(control_frequency, **options)
