@@ -14,6 +14,16 @@ DEFAULT_TIME_LIMIT = 8.192
 """Episode length (s): 2048 steps at 250 Hz."""
 
 
+def episode_steps(time_limit: float, control_frequency: float) -> int:
+    """Control steps in an episode of `time_limit` seconds at `control_frequency` (Hz); at least 1.
+
+    Raises ValueError unless `time_limit` is a positive finite number.
+    """
+    if not (isinstance(time_limit, (int, float)) and 0.0 < time_limit < math.inf):
+        raise ValueError(f"time_limit must be a positive number of seconds, got {time_limit!r}")
+    return max(1, round(time_limit * control_frequency))
+
+
 def reward_colour(reward: float) -> tuple[float, float, float]:
     """LED colour for a reward in [0, 1]: red at 0, green at 1."""
     reward = min(max(reward, 0.0), 1.0)
@@ -42,11 +52,10 @@ class Environment(control.Environment):
 
     def __init__(self, physics, task, control_frequency: float = DEFAULT_CONTROL_FREQUENCY,
                  time_limit: float = DEFAULT_TIME_LIMIT):
-        if not (isinstance(time_limit, (int, float)) and 0.0 < time_limit < math.inf):
-            raise ValueError(f"time_limit must be a positive number of seconds, got {time_limit!r}")
+        steps = episode_steps(time_limit, control_frequency)
         super().__init__(physics, task, control_timestep=1.0 / control_frequency, legacy_step=False)
         self._control_frequency = float(control_frequency)
-        self._episode_steps = max(1, round(time_limit * control_frequency))
+        self._episode_steps = steps
 
     @property
     def control_frequency(self) -> float:

@@ -24,6 +24,22 @@ def display_available() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
+def action_space(spec) -> spaces.Box:
+    """The float32 Box of a dm_env action spec (the motor voltage, V)."""
+    return spaces.Box(np.float32(np.min(spec.minimum)), np.float32(np.max(spec.maximum)),
+                      shape=spec.shape, dtype=np.float32)
+
+
+def observation_space(spec) -> spaces.Box:
+    """The flat float32 Box of a dm_env observation spec (an OrderedDict of arrays), keys in order."""
+    lows, highs = [], []
+    for array in spec.values():
+        lows.append(np.broadcast_to(getattr(array, "minimum", -np.inf), array.shape))
+        highs.append(np.broadcast_to(getattr(array, "maximum", np.inf), array.shape))
+    return spaces.Box(np.concatenate(lows).astype(np.float32), np.concatenate(highs).astype(np.float32),
+                      dtype=np.float32)
+
+
 class QubeEnv(gymnasium.Env):
     """A Qube task with Gymnasium's API (obtain one with `to_gymnasium` or `gymnasium.make`).
 
@@ -73,17 +89,8 @@ class QubeEnv(gymnasium.Env):
             "render_fps": int(round(environment.control_frequency)),
         }
 
-        action = environment.action_spec()
-        self.action_space = spaces.Box(np.float32(np.min(action.minimum)), np.float32(np.max(action.maximum)),
-                                       shape=action.shape, dtype=np.float32)
-        lows, highs = [], []
-        for spec in environment.observation_spec().values():
-            low = getattr(spec, "minimum", -np.inf)
-            high = getattr(spec, "maximum", np.inf)
-            lows.append(np.broadcast_to(low, spec.shape))
-            highs.append(np.broadcast_to(high, spec.shape))
-        self.observation_space = spaces.Box(np.concatenate(lows).astype(np.float32),
-                                            np.concatenate(highs).astype(np.float32), dtype=np.float32)
+        self.action_space = action_space(environment.action_spec())
+        self.observation_space = observation_space(environment.observation_spec())
 
     @property
     def task(self):
