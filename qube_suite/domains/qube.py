@@ -58,6 +58,7 @@ class Physics(dm_mujoco.Physics):
         self._arm_qpos, self._pendulum_qpos = ids.arm_qpos, ids.pendulum_qpos
         self._arm_dof, self._pendulum_dof = ids.arm_dof, ids.pendulum_dof
         self._led_rgba = model.geom_rgba[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "led")]
+        self._led = tuple(float(x) for x in self._led_rgba[:3])
         if not hasattr(self, "_parameters"):
             self._parameters = dict(params.NOMINAL)
         self._sensor_model = None
@@ -69,6 +70,7 @@ class Physics(dm_mujoco.Physics):
     def copy(self, share_model: bool = False) -> Physics:
         new = super().copy(share_model=share_model)
         new._parameters = dict(self._parameters)
+        new._led = self._led
         return new
 
     # -- parameters ---------------------------------------------------------------
@@ -139,12 +141,22 @@ class Physics(dm_mujoco.Physics):
         return (float(self._ctrl[0]) - p["motor_back_emf"] * speed) / p["motor_resistance"]
 
     def set_led(self, rgb: Sequence[float]) -> None:
-        """Colour the LED strip, (r, g, b) in [0, 1]."""
-        self._led_rgba[0], self._led_rgba[1], self._led_rgba[2] = rgb
+        """Colour the LED strip, (r, g, b) in [0, 1]; the model's geom takes it at the next `draw_led`."""
+        self._led = rgb
 
     def led(self) -> tuple[float, float, float]:
         """The LED strip's (r, g, b)."""
-        return float(self._led_rgba[0]), float(self._led_rgba[1]), float(self._led_rgba[2])
+        r, g, b = self._led
+        return float(r), float(g), float(b)
+
+    def draw_led(self) -> None:
+        """Write the LED colour into the model for drawing (`render` does; so must other renderers)."""
+        self._led_rgba[:3] = self._led
+
+    def render(self, *args, **kwargs):
+        """dm_control's `Physics.render`, showing the current LED colour."""
+        self.draw_led()
+        return super().render(*args, **kwargs)
 
     def reset_to(self, state: Sequence[float]) -> None:
         """Set [theta, alpha, dtheta, dalpha] exactly."""

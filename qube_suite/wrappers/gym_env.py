@@ -123,6 +123,7 @@ class QubeEnv(gymnasium.Env):
         return self._observation(), reward, terminated, truncated, self._info()
 
     def render(self):
+        self.physics.draw_led()
         if self.render_mode == "rgb_array":
             if self._renderer is None:
                 height, width = self._render_size
