@@ -11,6 +11,8 @@ EPILOG = """examples:
   qube-suite demo                 swing the simulated Qube up with the MPC controller
   qube-suite demo --seed 3        another start state
   qube-suite list                 domains, tasks, Gymnasium ids and controllers
+  qube-suite bench                step speed against Gymnasium, dm_control and raw MuJoCo (minutes)
+  qube-suite bench --quick        the same table from a few seconds of measurement
 """
 
 
@@ -57,6 +59,12 @@ def _list(args: argparse.Namespace) -> int:
     return 0
 
 
+def _bench(args: argparse.Namespace) -> int:
+    from qube_suite import benchmark
+
+    return benchmark.main(quick=args.quick)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="qube-suite", description="Control and RL tasks on the Quanser Qube-Servo 2.",
@@ -67,6 +75,9 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(run=_demo)
     listing = commands.add_parser("list", help="list domains, tasks, Gymnasium ids and controllers")
     listing.set_defaults(run=_list)
+    bench = commands.add_parser("bench", help="measure step speed against peers and raw MuJoCo")
+    bench.add_argument("--quick", action="store_true", help="short rounds and fewer batch sizes (seconds)")
+    bench.set_defaults(run=_bench)
     return parser
 
 
