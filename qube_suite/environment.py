@@ -74,12 +74,17 @@ class Environment(control.Environment):
 
     def reset(self) -> dm_env.TimeStep:
         """Start a new episode and return its first `TimeStep`."""
+        self.start_episode()
+        return dm_env.restart(self._task.get_observation(self._physics))
+
+    def start_episode(self) -> None:
+        """Start a new episode without building a `TimeStep`: the core that `reset` and the
+        Gymnasium view share."""
         self._reset_next_step = False
         self._step_count = 0
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics)
         self._physics.set_led(reward_colour(self._task.get_reward(self._physics)))
-        return dm_env.restart(self._task.get_observation(self._physics))
 
     def step(self, action) -> dm_env.TimeStep:
         """Apply `action` for one control period and return the resulting `TimeStep`."""

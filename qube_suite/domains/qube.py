@@ -9,6 +9,7 @@ mass, inertia and drawing too).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import pathlib
 from collections.abc import Mapping, Sequence
@@ -181,6 +182,16 @@ class Physics(dm_mujoco.Physics):
         """Reset time, state and control (dm_control's `Physics.reset`); the voltage is 0 V."""
         self._voltage = 0.0
         super().reset(keyframe_id)
+
+    @contextlib.contextmanager
+    def reset_context(self):
+        """dm_control's reset context without its extra passes: time, state and control are reset
+        (0 V), the caller sets the start (e.g. `reset_to`), then one `mj_forward` and a measurement."""
+        mujoco.mj_resetData(self._model_ptr, self._data_ptr)
+        self._voltage = 0.0
+        yield
+        mujoco.mj_forward(self._model_ptr, self._data_ptr)
+        self._measure()
 
     # -- helpers ------------------------------------------------------------------
 

@@ -78,6 +78,8 @@ class QubeBatch:
         ids = qube.ElementIds(template)
         self._theta, self._alpha = 1 + ids.arm_qpos, 1 + ids.pendulum_qpos
         self._dtheta, self._dalpha = 1 + template.nq + ids.arm_dof, 1 + template.nq + ids.pendulum_dof
+        self._angle_columns = [self._theta, self._alpha]
+        self._velocity_columns = [self._dtheta, self._dalpha]
         mujoco.mj_resetData(template, self._scratch)
         start = np.empty(mujoco.mj_stateSize(template, _STATE))
         mujoco.mj_getState(template, self._scratch, start, _STATE)
@@ -167,6 +169,6 @@ class QubeBatch:
     # -- helpers ------------------------------------------------------------------------
 
     def _measure(self) -> None:
-        state = self._state
-        self._measured = [wrap_angle(state[:, self._theta]), wrap_angle(state[:, self._alpha]),
-                          state[:, self._dtheta].copy(), state[:, self._dalpha].copy()]
+        angles = wrap_angle(self._state[:, self._angle_columns])
+        velocities = self._state[:, self._velocity_columns]
+        self._measured = [angles[:, 0], angles[:, 1], velocities[:, 0], velocities[:, 1]]

@@ -105,7 +105,7 @@ class QubeEnv(gymnasium.Env):
         super().reset(seed=seed)
         if seed is not None:
             self.environment.task.random.seed(seed)
-        self.environment.reset()
+        self.environment.start_episode()
         self._episode_over = False
         if self.render_mode == "human":
             self.render()

@@ -103,6 +103,8 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         self._step_counts = np.zeros(num_envs, dtype=np.int64)
         self._ended = np.zeros(num_envs, dtype=bool)
         self._started = False
+        self._every = np.ones(num_envs, dtype=bool)
+        self._every.flags.writeable = False  # the info mask of values every world has, shared by all steps
 
     @property
     def batch(self) -> QubeBatch:
@@ -141,22 +143,25 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
     def step(self, actions):
         """Apply one voltage per world for one control period; see the class docstring for autoreset."""
         volts = self._volts(actions)
-        restarting = self._ended.copy() if self.autoreset_mode is AutoresetMode.NEXT_STEP else None
-        if self.autoreset_mode is AutoresetMode.DISABLED and self._ended.any():
-            raise RuntimeError(f"worlds {np.flatnonzero(self._ended).tolist()} have ended; reset them with "
-                               "reset(options={'reset_mask': mask}) before step()")
         if not self._started:
             raise RuntimeError("call reset() before step()")
+        restarting = None
+        if self._ended.any():
+            if self.autoreset_mode is AutoresetMode.DISABLED:
+                raise RuntimeError(f"worlds {np.flatnonzero(self._ended).tolist()} have ended; reset them "
+                                   "with reset(options={'reset_mask': mask}) before step()")
+            restarting = self._ended.copy()  # NEXT_STEP: these worlds start over instead of stepping
         batch, task = self._batch, self._task
         batch.step(volts)
         self._step_counts += 1
-        if restarting is not None and restarting.any():
+        if restarting is not None:
             for world in np.flatnonzero(restarting).tolist():
                 self._start(world)
         task.after_step(batch)
         rewards = task.get_reward(batch)
         terminated = ~task.in_safe_set(batch)
-        truncated = (self._step_counts >= self._steps_per_episode) & ~terminated
+        truncated = self._step_counts >= self._steps_per_episode
+        truncated &= ~terminated
         if restarting is not None:
             rewards[restarting] = 0.0
             terminated[restarting] = truncated[restarting] = False
@@ -202,13 +207,13 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         volts = actions.reshape(self.num_envs).astype(np.float64)
         if not np.isfinite(volts).all():
             raise ValueError(f"actions must be finite, got {actions.reshape(-1)[~np.isfinite(volts)][:5]}")
-        return np.clip(volts, -self._limit, self._limit, out=volts)
+        return np.minimum(np.maximum(volts, -self._limit, out=volts), self._limit, out=volts)  # clip
 
     def _observations(self) -> np.ndarray:
         return np.stack(self._task.observation_values(self._batch), axis=1, dtype=np.float32)
 
     def _info(self) -> dict[str, np.ndarray]:
-        every = np.ones(self.num_envs, dtype=bool)
+        every = self._every
         info = {"time": self._batch.time().copy(), "_time": every,
                 "voltage": self._batch.voltage().copy(), "_voltage": every}
         if self._follows_target:
