@@ -1,6 +1,6 @@
 """Step speed of qube_suite against Gymnasium, dm_control and raw MuJoCo, all measured in one run.
 
-    python benchmarks/step_speed.py           # about 3 minutes
+    python benchmarks/step_speed.py           # about 2 minutes
     python benchmarks/step_speed.py --quick   # a few seconds, rough
 
 Prints one table (the same as `qube-suite bench`); the rows are listed in
