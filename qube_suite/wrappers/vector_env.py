@@ -126,8 +126,8 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
             if mask.shape != (self.num_envs,) or mask.dtype != np.bool_:
                 raise ValueError(f"options['reset_mask'] must be a bool array of shape ({self.num_envs},)")
             worlds = np.flatnonzero(mask)
-        self._started = True
         seeds = self._seeds(seed)
+        self._started = True
         for world in worlds.tolist():
             if seeds[world] is not None:
                 self._randoms[world].seed(seeds[world])
