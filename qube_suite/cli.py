@@ -12,6 +12,8 @@ EPILOG = """examples:
   qube-suite demo --seed 3        another start state
   qube-suite list                 domains, tasks, Gymnasium ids and controllers
   qube-suite eval --task balance --controller balance --episodes 20 --json
+  qube-suite bench                step speed against Gymnasium, dm_control and raw MuJoCo (minutes)
+  qube-suite bench --quick        the same table from a few seconds of measurement
 """
 
 
@@ -77,6 +79,12 @@ def _eval(args: argparse.Namespace) -> int:
     return 0
 
 
+def _bench(args: argparse.Namespace) -> int:
+    from qube_suite import benchmark
+
+    return benchmark.main(quick=args.quick)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="qube-suite", description="Control and RL tasks on the Quanser Qube-Servo 2.",
@@ -97,6 +105,9 @@ def build_parser() -> argparse.ArgumentParser:
     evaluation.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
     evaluation.add_argument("--json", action="store_true", help="print the result as JSON")
     evaluation.set_defaults(run=_eval)
+    bench = commands.add_parser("bench", help="measure step speed against peers and raw MuJoCo")
+    bench.add_argument("--quick", action="store_true", help="short rounds and fewer batch sizes (seconds)")
+    bench.set_defaults(run=_bench)
     return parser
 
 

@@ -14,6 +14,16 @@ DEFAULT_TIME_LIMIT = 8.192
 """Episode length (s): 2048 steps at 250 Hz."""
 
 
+def episode_steps(time_limit: float, control_frequency: float) -> int:
+    """Control steps in an episode of `time_limit` seconds at `control_frequency` (Hz); at least 1.
+
+    Raises ValueError unless `time_limit` is a positive finite number.
+    """
+    if not (isinstance(time_limit, (int, float)) and 0.0 < time_limit < math.inf):
+        raise ValueError(f"time_limit must be a positive number of seconds, got {time_limit!r}")
+    return max(1, round(time_limit * control_frequency))
+
+
 def reward_colour(reward: float) -> tuple[float, float, float]:
     """LED colour for a reward in [0, 1]: red at 0, green at 1."""
     reward = min(max(reward, 0.0), 1.0)
@@ -42,11 +52,10 @@ class Environment(control.Environment):
 
     def __init__(self, physics, task, control_frequency: float = DEFAULT_CONTROL_FREQUENCY,
                  time_limit: float = DEFAULT_TIME_LIMIT):
-        if not (isinstance(time_limit, (int, float)) and 0.0 < time_limit < math.inf):
-            raise ValueError(f"time_limit must be a positive number of seconds, got {time_limit!r}")
+        steps = episode_steps(time_limit, control_frequency)
         super().__init__(physics, task, control_timestep=1.0 / control_frequency, legacy_step=False)
         self._control_frequency = float(control_frequency)
-        self._episode_steps = max(1, round(time_limit * control_frequency))
+        self._episode_steps = steps
 
     @property
     def control_frequency(self) -> float:
@@ -65,12 +74,17 @@ class Environment(control.Environment):
 
     def reset(self) -> dm_env.TimeStep:
         """Start a new episode and return its first `TimeStep`."""
+        self.start_episode()
+        return dm_env.restart(self._task.get_observation(self._physics))
+
+    def start_episode(self) -> None:
+        """Start a new episode without building a `TimeStep`: the core that `reset` and the
+        Gymnasium view share."""
         self._reset_next_step = False
         self._step_count = 0
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics)
         self._physics.set_led(reward_colour(self._task.get_reward(self._physics)))
-        return dm_env.restart(self._task.get_observation(self._physics))
 
     def step(self, action) -> dm_env.TimeStep:
         """Apply `action` for one control period and return the resulting `TimeStep`."""
@@ -106,6 +120,4 @@ class Environment(control.Environment):
 
     def close(self) -> None:
         """Release the domain: on hardware, stop the motor and close the board."""
-        close = getattr(self._physics, "close", None)
-        if close is not None:
-            close()
+        self._physics.close()

@@ -12,6 +12,7 @@ from typing import Any
 
 from qube_suite.environment import DEFAULT_CONTROL_FREQUENCY, Environment
 from qube_suite.tasks import SUITE as _TASKS
+from qube_suite.tasks import QubeTask
 
 _DOMAIN_MODULES = {
     "qube": "qube_suite.domains.qube",
@@ -65,11 +66,7 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
     Raises:
         ValueError: unknown names or invalid arguments; the message lists valid values.
     """
-    if domain_name not in _DOMAIN_MODULES:
-        raise ValueError(f"unknown domain {domain_name!r}; valid domains: {', '.join(_DOMAIN_MODULES)}")
-    if task_name not in TASKS_BY_DOMAIN[domain_name]:
-        raise ValueError(f"unknown task {task_name!r} for domain {domain_name!r}; valid tasks: "
-                         f"{', '.join(TASKS_BY_DOMAIN[domain_name])}")
+    task = make_task(domain_name, task_name, task_kwargs)
     environment_kwargs = dict(environment_kwargs or {})
     unknown = set(environment_kwargs) - set(ENVIRONMENT_KWARGS)
     if unknown:
@@ -78,8 +75,21 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
     if randomization is not None:
         raise ValueError("randomization is not available in this release of qube_suite; pass None")
 
-    task = _TASKS[task_name](**dict(task_kwargs or {}))
     domain = importlib.import_module(_DOMAIN_MODULES[domain_name])
     frequency = environment_kwargs.get("control_frequency", DEFAULT_CONTROL_FREQUENCY)
     physics = domain.make_physics(control_frequency=frequency, **dict(domain_kwargs or {}))
     return Environment(physics, task, **environment_kwargs)
+
+
+def make_task(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None = None) -> QubeTask:
+    """The task `task_name` of `domain_name`, made with `task_kwargs` (see `load`).
+
+    Raises:
+        ValueError: unknown names or invalid arguments; the message lists valid values.
+    """
+    if domain_name not in _DOMAIN_MODULES:
+        raise ValueError(f"unknown domain {domain_name!r}; valid domains: {', '.join(_DOMAIN_MODULES)}")
+    if task_name not in TASKS_BY_DOMAIN[domain_name]:
+        raise ValueError(f"unknown task {task_name!r} for domain {domain_name!r}; valid tasks: "
+                         f"{', '.join(TASKS_BY_DOMAIN[domain_name])}")
+    return _TASKS[task_name](**dict(task_kwargs or {}))

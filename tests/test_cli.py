@@ -26,3 +26,17 @@ def test_user_mistakes_are_one_line_errors_with_nonzero_exit():
     assert "Traceback" not in result.stderr
     result = subprocess.run([sys.executable, "-m", "qube_suite", "fly"], capture_output=True, text=True)
     assert result.returncode == 2 and "invalid choice" in result.stderr
+
+
+def test_bench_quick_prints_one_table_with_ratios(capsys):
+    assert cli.main(["bench", "--quick"]) == 0
+    out = capsys.readouterr().out
+    rows = {line.split("  ")[0]: line for line in out.splitlines() if "  " in line}
+    for name in ("qube_suite Gymnasium step (Swingup-v0)", "qube_suite dm_env step (swingup)",
+                 "qube_suite vector env, N=16", "Gymnasium InvertedPendulum-v5 step",
+                 "dm_control cartpole swingup step", "raw MuJoCo: Python loop of mj_step on qube.xml",
+                 "raw mujoco.rollout, 2 threads, N=16", "reset: qube_suite Gymnasium (Swingup-v0)"):
+        assert name in rows, name
+        assert float(rows[name].split()[len(name.split())].replace(",", "")) > 0  # the best rate
+    assert "%" in rows["qube_suite vector env, N=16"]  # share of the raw rollout limit
+    assert "to fill" in rows["reset: qube_suite Gymnasium (Swingup-v0)"]  # the randomization column

@@ -3,6 +3,11 @@
 Tasks are written against `QubePhysics` only, so the same task runs on the MuJoCo
 domain (`qube`) and on the hardware domain (`qube_hardware`). Angles are in
 radians, wrapped to (-pi, pi]; alpha = 0 is the pendulum upright, +-pi hanging.
+
+A batch of simulated Qubes (`qube_suite.domains.qube_batch.QubeBatch`, behind the
+vector environment) has the same accessors returning one value per world as
+arrays, and `reset_world(world, state)` in place of `reset_to`; task formulas are
+written to accept either.
 """
 
 from __future__ import annotations
@@ -57,3 +62,9 @@ class QubePhysics(Protocol):
 
     def end_episode(self) -> None:
         """The episode is over: hardware stops driving the motor until the next reset."""
+
+    def drawable(self):
+        """A MuJoCo physics (`domains.qube.Physics`) showing the Qube's state and LED, for rendering."""
+
+    def close(self) -> None:
+        """Release the Qube: on hardware, stop the motor and close the board."""

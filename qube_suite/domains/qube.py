@@ -9,6 +9,7 @@ mass, inertia and drawing too).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import pathlib
 from collections.abc import Mapping, Sequence
@@ -54,21 +55,11 @@ class Physics(dm_mujoco.Physics):
         self._qpos = self._data_ptr.qpos
         self._qvel = self._data_ptr.qvel
         self._ctrl = self._data_ptr.ctrl
-        self._ids = {
-            "arm": mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "arm"),
-            "pendulum": mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "pendulum"),
-            "arm_joint": mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "arm"),
-            "pendulum_joint": mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "pendulum"),
-            "motor": mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, "motor"),
-            "arm_geom": mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "arm"),
-            "encoder_geom": mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "pendulum_encoder"),
-            "pendulum_geom": mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "pendulum"),
-        }
-        self._arm_qpos = int(model.jnt_qposadr[self._ids["arm_joint"]])
-        self._pendulum_qpos = int(model.jnt_qposadr[self._ids["pendulum_joint"]])
-        self._arm_dof = int(model.jnt_dofadr[self._ids["arm_joint"]])
-        self._pendulum_dof = int(model.jnt_dofadr[self._ids["pendulum_joint"]])
+        ids = ElementIds(model)
+        self._arm_qpos, self._pendulum_qpos = ids.arm_qpos, ids.pendulum_qpos
+        self._arm_dof, self._pendulum_dof = ids.arm_dof, ids.pendulum_dof
         self._led_rgba = model.geom_rgba[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "led")]
+        self._led = tuple(float(x) for x in self._led_rgba[:3])
         if not hasattr(self, "_parameters"):
             self._parameters = dict(params.NOMINAL)
         self._sensor_model = None
@@ -80,6 +71,7 @@ class Physics(dm_mujoco.Physics):
     def copy(self, share_model: bool = False) -> Physics:
         new = super().copy(share_model=share_model)
         new._parameters = dict(self._parameters)
+        new._led = self._led
         return new
 
     # -- parameters ---------------------------------------------------------------
@@ -95,49 +87,8 @@ class Physics(dm_mujoco.Physics):
         Raises ValueError for an unknown name or an impossible value; the model is
         unchanged then.
         """
-        p = params.resolve(dict(overrides or {}))
-        m, ids = self._model_ptr, self._ids
-        arm, pendulum = ids["arm"], ids["pendulum"]
-
-        jr = params.arm_inertia(p["arm_mass"], p["arm_length"])
-        m.body_mass[arm] = p["arm_mass"]
-        m.body_inertia[arm, 0] = m.body_inertia[arm, 2] = jr
-        m.body_pos[pendulum] = (0.0, -p["arm_length"], 0.0)
-
-        jp = params.pendulum_inertia(p["pendulum_mass"], p["pendulum_length"])
-        m.body_mass[pendulum] = p["pendulum_mass"]
-        m.body_ipos[pendulum] = (0.0, 0.0, p["pendulum_length"] / 2.0)
-        m.body_inertia[pendulum] = (jp, jp, 0.5 * p["pendulum_mass"] * params.PENDULUM_ROD_RADIUS**2)
-
-        m.dof_damping[self._arm_dof] = p["arm_damping"]
-        m.dof_damping[self._pendulum_dof] = p["pendulum_damping"]
-        m.dof_armature[self._arm_dof] = p["rotor_inertia"]
-        m.dof_frictionloss[self._arm_dof] = p["arm_friction"]
-        m.dof_frictionloss[self._pendulum_dof] = p["pendulum_friction"]
-        constraint = int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
-        if p["arm_friction"] or p["pendulum_friction"]:  # Coulomb friction is a constraint in MuJoCo
-            m.opt.disableflags &= ~constraint
-        else:
-            m.opt.disableflags |= constraint
-        m.jnt_stiffness[ids["arm_joint"]] = p["cable_stiffness"]
-
-        motor = ids["motor"]
-        m.actuator_gainprm[motor, 0] = p["motor_torque_constant"] / p["motor_resistance"]
-        m.actuator_biasprm[motor, 2] = (
-            -p["motor_torque_constant"] * p["motor_back_emf"] / p["motor_resistance"])
-        m.opt.gravity[:] = (0.0, 0.0, -p["gravity"])
-
-        # Drawing follows the lengths.
-        half_arm = p["arm_length"] / 2.0
-        m.geom_pos[ids["arm_geom"]] = (0.0, -half_arm, 0.0)
-        m.geom_size[ids["arm_geom"], 1] = half_arm
-        m.geom_pos[ids["encoder_geom"], 1] = -p["arm_length"] + 0.014
-        m.geom_pos[ids["pendulum_geom"]] = (0.0, 0.0, p["pendulum_length"] / 2.0)
-        m.geom_size[ids["pendulum_geom"], 1] = p["pendulum_length"] / 2.0
-
         state = self._exact_state()
-        mujoco.mj_setConst(m, self._data_ptr)  # mass-dependent constants
-        self._parameters = p
+        self._parameters = write_parameters(self._model_ptr, self._data_ptr, overrides)
         self._set_state(state)
 
     # -- the domain interface -------------------------------------------------------
@@ -191,12 +142,32 @@ class Physics(dm_mujoco.Physics):
         return (float(self._ctrl[0]) - p["motor_back_emf"] * speed) / p["motor_resistance"]
 
     def set_led(self, rgb: Sequence[float]) -> None:
-        """Colour the LED strip, (r, g, b) in [0, 1]."""
-        self._led_rgba[0], self._led_rgba[1], self._led_rgba[2] = rgb
+        """Colour the LED strip, (r, g, b) in [0, 1]; the model's geom takes it at the next `draw_led`."""
+        self._led = rgb
 
     def led(self) -> tuple[float, float, float]:
         """The LED strip's (r, g, b)."""
-        return float(self._led_rgba[0]), float(self._led_rgba[1]), float(self._led_rgba[2])
+        r, g, b = self._led
+        return float(r), float(g), float(b)
+
+    def draw_led(self) -> None:
+        """Write the LED colour into the model for drawing (`render` does; so must other renderers)."""
+        self._led_rgba[:3] = self._led
+
+    def drawable(self) -> Physics:
+        """This physics, with the LED colour written into the model, for renderers."""
+        self.draw_led()
+        return self
+
+    def close(self) -> None:
+        """Free MuJoCo's data and any rendering context; the physics cannot be used afterwards."""
+        if hasattr(self, "_data"):
+            self.free()
+
+    def render(self, *args, **kwargs):
+        """dm_control's `Physics.render`, showing the current LED colour."""
+        self.draw_led()
+        return super().render(*args, **kwargs)
 
     def reset_to(self, state: Sequence[float]) -> None:
         """Set [theta, alpha, dtheta, dalpha] exactly."""
@@ -225,6 +196,16 @@ class Physics(dm_mujoco.Physics):
         self._voltage = 0.0
         super().reset(keyframe_id)
 
+    @contextlib.contextmanager
+    def reset_context(self):
+        """dm_control's reset context without its extra passes: time, state and control are reset
+        (0 V), the caller sets the start (e.g. `reset_to`), then one `mj_forward` and a measurement."""
+        mujoco.mj_resetData(self._model_ptr, self._data_ptr)
+        self._voltage = 0.0
+        yield
+        mujoco.mj_forward(self._model_ptr, self._data_ptr)
+        self._measure()
+
     # -- helpers ------------------------------------------------------------------
 
     def _exact_state(self) -> tuple[float, float, float, float]:
@@ -246,9 +227,85 @@ class Physics(dm_mujoco.Physics):
         self._measure()
 
 
+class ElementIds:
+    """Indices of the Qube's named bodies, joints, actuator and geoms in a compiled model."""
+
+    def __init__(self, model: mujoco.MjModel):
+        def find(kind, name):
+            return mujoco.mj_name2id(model, kind, name)
+
+        body, joint, geom = mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_JOINT, mujoco.mjtObj.mjOBJ_GEOM
+        self.arm, self.pendulum = find(body, "arm"), find(body, "pendulum")
+        self.arm_joint, self.pendulum_joint = find(joint, "arm"), find(joint, "pendulum")
+        self.motor = find(mujoco.mjtObj.mjOBJ_ACTUATOR, "motor")
+        self.arm_geom, self.pendulum_geom = find(geom, "arm"), find(geom, "pendulum")
+        self.encoder_geom = find(geom, "pendulum_encoder")
+        self.arm_qpos = int(model.jnt_qposadr[self.arm_joint])
+        self.pendulum_qpos = int(model.jnt_qposadr[self.pendulum_joint])
+        self.arm_dof = int(model.jnt_dofadr[self.arm_joint])
+        self.pendulum_dof = int(model.jnt_dofadr[self.pendulum_joint])
+
+
+def write_parameters(model: mujoco.MjModel, data: mujoco.MjData,
+                     overrides: Mapping[str, float] | None = None) -> dict[str, float]:
+    """Write the nominal parameters updated by `overrides` into `model` in place; return them all.
+
+    Keeps derived quantities consistent (inertias, centres of mass, drawing) and
+    recomputes MuJoCo's mass-dependent constants using `data` (any MjData of a model
+    of the same sizes) as scratch. Raises ValueError for an unknown name or an
+    impossible value; the model is unchanged then.
+    """
+    p = params.resolve(dict(overrides or {}))
+    m, ids = model, ElementIds(model)
+    arm, pendulum = ids.arm, ids.pendulum
+
+    jr = params.arm_inertia(p["arm_mass"], p["arm_length"])
+    m.body_mass[arm] = p["arm_mass"]
+    m.body_inertia[arm, 0] = m.body_inertia[arm, 2] = jr
+    m.body_pos[pendulum] = (0.0, -p["arm_length"], 0.0)
+
+    jp = params.pendulum_inertia(p["pendulum_mass"], p["pendulum_length"])
+    m.body_mass[pendulum] = p["pendulum_mass"]
+    m.body_ipos[pendulum] = (0.0, 0.0, p["pendulum_length"] / 2.0)
+    m.body_inertia[pendulum] = (jp, jp, 0.5 * p["pendulum_mass"] * params.PENDULUM_ROD_RADIUS**2)
+
+    m.dof_damping[ids.arm_dof] = p["arm_damping"]
+    m.dof_damping[ids.pendulum_dof] = p["pendulum_damping"]
+    m.dof_armature[ids.arm_dof] = p["rotor_inertia"]
+    m.dof_frictionloss[ids.arm_dof] = p["arm_friction"]
+    m.dof_frictionloss[ids.pendulum_dof] = p["pendulum_friction"]
+    constraint = int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+    if p["arm_friction"] or p["pendulum_friction"]:  # Coulomb friction is a constraint in MuJoCo
+        m.opt.disableflags &= ~constraint
+    else:
+        m.opt.disableflags |= constraint
+    m.jnt_stiffness[ids.arm_joint] = p["cable_stiffness"]
+
+    m.actuator_gainprm[ids.motor, 0] = p["motor_torque_constant"] / p["motor_resistance"]
+    m.actuator_biasprm[ids.motor, 2] = (
+        -p["motor_torque_constant"] * p["motor_back_emf"] / p["motor_resistance"])
+    m.opt.gravity[:] = (0.0, 0.0, -p["gravity"])
+
+    # Drawing follows the lengths.
+    half_arm = p["arm_length"] / 2.0
+    m.geom_pos[ids.arm_geom] = (0.0, -half_arm, 0.0)
+    m.geom_size[ids.arm_geom, 1] = half_arm
+    m.geom_pos[ids.encoder_geom, 1] = -p["arm_length"] + 0.014
+    m.geom_pos[ids.pendulum_geom] = (0.0, 0.0, p["pendulum_length"] / 2.0)
+    m.geom_size[ids.pendulum_geom, 1] = p["pendulum_length"] / 2.0
+
+    mujoco.mj_setConst(m, data)  # mass-dependent constants
+    return p
+
+
 def substeps_per_control_period(control_frequency: float) -> int:
     """Physics steps per control period so that the timestep is at most MAX_TIMESTEP."""
     return max(1, math.ceil(1.0 / (control_frequency * MAX_TIMESTEP) - 1e-9))
+
+
+def physics_timestep(control_frequency: float) -> float:
+    """Physics timestep (s): the control period divided into `substeps_per_control_period` steps."""
+    return 1.0 / (control_frequency * substeps_per_control_period(control_frequency))
 
 
 def make_physics(control_frequency: float = 250.0,
@@ -256,7 +313,7 @@ def make_physics(control_frequency: float = 250.0,
     """A simulated Qube for control at `control_frequency` (Hz) with `parameters`."""
     check_control_frequency(control_frequency)
     physics = Physics.from_xml_path(str(MODEL_PATH))
-    physics.model.opt.timestep = 1.0 / (control_frequency * substeps_per_control_period(control_frequency))
+    physics.model.opt.timestep = physics_timestep(control_frequency)
     if parameters:
         physics.set_parameters(parameters)
     return physics

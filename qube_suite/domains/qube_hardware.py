@@ -96,6 +96,7 @@ class Physics(control.Physics):
         self._measured: tuple[float, float, float, float] = (0.0, math.pi, 0.0, 0.0)
         self._samples = 0
         self._episode_start = 0
+        self._twin = None
         self.currents = np.zeros(1)
         self.encoders = np.zeros(2, dtype=np.int32)
         self.others = np.zeros(1)
@@ -188,9 +189,22 @@ class Physics(control.Physics):
         if self.qube.is_open and not self.qube.is_idle:
             self.qube.idle()
 
+    def drawable(self):
+        """The simulated Qube put in the measured state with the LED's colour: a digital twin."""
+        if self._twin is None:
+            from qube_suite.domains import qube
+
+            self._twin = qube.make_physics(self._frequency)
+        self._twin.reset_to(self._measured)
+        self._twin.set_led(self._led)
+        return self._twin.drawable()
+
     def close(self) -> None:
         """Stop the motor and close the board."""
         self.qube.close()
+        if self._twin is not None:
+            self._twin.close()
+            self._twin = None
         for controller in self._controllers.values():
             controller.close()
         self._controllers.clear()

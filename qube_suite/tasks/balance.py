@@ -48,15 +48,15 @@ class Balance(GoalTask):
     v0: first release.
     """
 
-    def initial_state(self) -> np.ndarray:
+    def initial_state(self, random: np.random.RandomState) -> np.ndarray:
         std = np.array([START_ANGLE_STD, START_ANGLE_STD, START_VELOCITY_STD, START_VELOCITY_STD])
-        return np.clip(self.random.normal(0.0, std), -3.0 * std, 3.0 * std)
+        return np.clip(random.normal(0.0, std), -3.0 * std, 3.0 * std)
 
-    def pendulum_error(self, physics) -> float:
+    def pendulum_error(self, physics):
         return physics.pendulum_angle()
 
-    def in_safe_set(self, physics) -> bool:
-        return super().in_safe_set(physics) and abs(physics.pendulum_angle()) <= PENDULUM_LIMIT
+    def in_safe_set(self, physics):
+        return super().in_safe_set(physics) & (abs(physics.pendulum_angle()) <= PENDULUM_LIMIT)
 
 
 class BalanceFollow(Balance):

@@ -1,18 +1,24 @@
 """What every Qube task shares: the voltage action, the observation, the safe set.
 
 Tasks use only the domain interface (`qube_suite.domains.interface.QubePhysics`),
-so they run unchanged in simulation and on hardware.
+so they run unchanged in simulation and on hardware. Their formulas (reward,
+safe set, observation, task processes) take floats from one Qube or arrays from a
+batch of Qubes alike (`qube_suite.domains.qube_batch.QubeBatch`, used by the vector
+environment after `use_batch`), so each is written once.
 """
 
 from __future__ import annotations
 
 import collections
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from dm_control.suite import base
 from dm_env import specs
+
+from qube_suite.tasks.elementwise import cos, sin
 
 DEFAULT_VOLTAGE_LIMIT = 3.0
 """Default motor voltage limit (V): the smallest in [3, 10] V that allows a swing-up
@@ -35,22 +41,22 @@ def voltage_from_action(action: Any, limit: float) -> float:
     Accepts a 1-element array-like or a scalar. Anything else (wrong shape, NaN,
     inf, non-numeric) raises ValueError.
     """
-    if type(action) is not np.ndarray:
+    if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
+        volts = action.item()  # the usual action: checked by the comparison below
+        if -limit <= volts <= limit:  # False for NaN
+            return volts
+    else:
         try:
             action = np.asarray(action)
         except Exception as error:  # ragged sequences and other oddities
             raise ValueError(f"action must be one number (V), got {action!r}") from error
-    if action.shape not in ((1,), ()) or action.dtype.kind not in "fiu":
-        raise ValueError(f"action must be one number (V) of shape (1,), got {action!r} "
-                         f"with shape {action.shape} and dtype {action.dtype}")
-    volts = action.item()
+        if action.shape not in ((1,), ()) or action.dtype.kind not in "fiu":
+            raise ValueError(f"action must be one number (V) of shape (1,), got {action!r} "
+                             f"with shape {action.shape} and dtype {action.dtype}")
+        volts = float(action.item())
     if not math.isfinite(volts):
         raise ValueError(f"action must be finite, got {volts}")
-    if volts > limit:
-        return limit
-    if volts < -limit:
-        return -limit
-    return float(volts)
+    return min(max(volts, -limit), limit)
 
 
 class QubeTask(base.Task):
@@ -85,12 +91,32 @@ class QubeTask(base.Task):
     # -- episode ----------------------------------------------------------------
 
     def initialize_episode(self, physics) -> None:
-        """Start from a state drawn by `initial_state`."""
-        physics.reset_to(self.initial_state())
+        """Start from a state drawn by `initial_state` from `self.random`."""
+        self.start_episode(physics, self.random)
 
-    def initial_state(self) -> np.ndarray:
-        """[theta, alpha, dtheta, dalpha] to start an episode from, drawn from `self.random`."""
+    def start_episode(self, physics, random: np.random.RandomState, world: int | None = None) -> None:
+        """Reset the Qube to a start drawn from `random` and restart the task's processes.
+
+        `world`: which Qube of a batch starts (the others go on); None for one Qube.
+        """
+        state = self.initial_state(random)
+        if world is None:
+            physics.reset_to(state)
+        else:
+            physics.reset_world(world, state)
+
+    def initial_state(self, random: np.random.RandomState) -> np.ndarray:
+        """[theta, alpha, dtheta, dalpha] (rad, rad/s) to start an episode from, drawn from `random`."""
         raise NotImplementedError
+
+    def use_batch(self, randoms: Sequence[np.random.RandomState]) -> None:
+        """Evaluate a batch of `len(randoms)` Qubes from now on, world i drawing from `randoms[i]`.
+
+        The task's processes then hold one value per world, `self.random` is the
+        sequence of per-world random states, and `get_reward`, `in_safe_set`,
+        `observation_values` and `after_step` take a `QubeBatch` and return arrays.
+        """
+        self._random = tuple(randoms)
 
     def before_step(self, action, physics) -> None:
         """Validate and limit `action`, then apply it; a bad action raises and changes nothing."""
@@ -99,8 +125,8 @@ class QubeTask(base.Task):
     def after_step(self, physics) -> None:
         """Advance the task's own processes (none by default)."""
 
-    def in_safe_set(self, physics) -> bool:
-        """Whether the Qube may go on: the arm within +-90 degrees."""
+    def in_safe_set(self, physics):
+        """Whether the Qube may go on (bool, or one per world): the arm within +-90 degrees."""
         return abs(physics.arm_angle()) <= ARM_LIMIT
 
     def get_termination(self, physics) -> float | None:
@@ -116,11 +142,12 @@ class QubeTask(base.Task):
     def observation_spec(self, physics) -> collections.OrderedDict:
         return collections.OrderedDict(state=specs.Array((6 if self._trig else 4,), np.float64, name="state"))
 
-    def observation_values(self, physics) -> list[float]:
-        """The observation as one flat list, in the order of `observation_spec`'s keys."""
+    def observation_values(self, physics) -> list:
+        """The observation as one flat list (of floats, or of arrays over worlds), in the order of
+        `observation_spec`'s keys."""
         theta, alpha = physics.arm_angle(), physics.pendulum_angle()
         if self._trig:
-            return [math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha),
+            return [cos(theta), sin(theta), cos(alpha), sin(alpha),
                     physics.arm_velocity(), physics.pendulum_velocity()]
         return [theta, alpha, physics.arm_velocity(), physics.pendulum_velocity()]
 

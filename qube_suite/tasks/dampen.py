@@ -48,12 +48,12 @@ class Dampen(GoalTask):
     v0: first release.
     """
 
-    def initial_state(self) -> np.ndarray:
-        u = self.random.uniform(-1.0, 1.0, 4)
+    def initial_state(self, random: np.random.RandomState) -> np.ndarray:
+        u = random.uniform(-1.0, 1.0, 4)
         return np.array([START_ARM_RANGE * u[0], math.pi * u[1],
                          START_ARM_SPEED * u[2], START_PENDULUM_SPEED * u[3]])
 
-    def pendulum_error(self, physics) -> float:
+    def pendulum_error(self, physics):
         return wrap_angle(physics.pendulum_angle() - math.pi)
 
 

@@ -32,33 +32,38 @@ class GoalTask(QubeTask):
         self._sparse = bool(sparse)
         self._target = TargetProcess() if self.follows_target else None
 
+    def use_batch(self, randoms) -> None:
+        super().use_batch(randoms)
+        if self._target is not None:
+            self._target = TargetProcess(len(self._random))
+
     @property
     def sparse(self) -> bool:
         return self._sparse
 
     @property
-    def target(self) -> float:
-        """The arm's goal angle (rad): 0, or the current follow target."""
+    def target(self):
+        """The arm's goal angle (rad): 0, or the current follow target (one per world in a batch)."""
         return 0.0 if self._target is None else self._target.value
 
-    def pendulum_error(self, physics) -> float:
+    def pendulum_error(self, physics):
         """Pendulum angle from its goal (rad)."""
         raise NotImplementedError
 
-    def arm_error(self, physics) -> float:
+    def arm_error(self, physics):
         """Arm angle from its goal (rad)."""
         return physics.arm_angle() - self.target
 
-    def get_reward(self, physics) -> float:
+    def get_reward(self, physics):
         pendulum_error, arm_error = self.pendulum_error(physics), self.arm_error(physics)
         if self._sparse:
-            return 1.0 if rewards.in_goal(pendulum_error, arm_error) else 0.0
+            return rewards.goal_reward(pendulum_error, arm_error)
         return rewards.angle_reward(pendulum_error, arm_error)
 
-    def initialize_episode(self, physics) -> None:
-        super().initialize_episode(physics)
+    def start_episode(self, physics, random, world=None) -> None:
+        super().start_episode(physics, random, world)
         if self._target is not None:
-            self._target.reset(physics.time(), self.random)
+            self._target.reset(0.0, random, world)  # episodes start at time 0
 
     def after_step(self, physics) -> None:
         if self._target is not None:
@@ -70,7 +75,7 @@ class GoalTask(QubeTask):
             spec["target"] = specs.BoundedArray((1,), np.float64, -TARGET_LIMIT, TARGET_LIMIT, name="target")
         return spec
 
-    def observation_values(self, physics) -> list[float]:
+    def observation_values(self, physics) -> list:
         values = super().observation_values(physics)
         if self._target is not None:
             values.append(self._target.value)

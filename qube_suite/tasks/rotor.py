@@ -8,6 +8,7 @@ import numpy as np
 
 from qube_suite.angles import TAU, wrap_angle
 from qube_suite.tasks.base import QubeTask
+from qube_suite.tasks.elementwise import maximum
 from qube_suite.tasks.registry import SUITE
 
 START_NOISE = 0.01
@@ -45,36 +46,67 @@ class Rotor(QubeTask):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self._last_alpha = 0.0
-        self._turned = 0.0
-        self._revolutions = 0
-        self._completed_revolution = False
+        self._counter = RevolutionCounter()
+
+    def use_batch(self, randoms) -> None:
+        super().use_batch(randoms)
+        self._counter = RevolutionCounter(len(self._random))
 
     @property
-    def revolutions(self) -> int:
-        """Net full revolutions completed this episode."""
-        return self._revolutions
+    def revolutions(self):
+        """Net full revolutions completed this episode (int; a float per world in a batch)."""
+        revolutions = self._counter.revolutions
+        return revolutions if isinstance(revolutions, np.ndarray) else int(revolutions)
 
-    def initial_state(self) -> np.ndarray:
-        return self.random.uniform(-START_NOISE, START_NOISE, 4) + np.array([0.0, math.pi, 0.0, 0.0])
+    def initial_state(self, random: np.random.RandomState) -> np.ndarray:
+        return random.uniform(-START_NOISE, START_NOISE, 4) + np.array([0.0, math.pi, 0.0, 0.0])
 
-    def initialize_episode(self, physics) -> None:
-        super().initialize_episode(physics)
-        self._last_alpha = physics.pendulum_angle()
-        self._turned = 0.0
-        self._revolutions = 0
-        self._completed_revolution = False
+    def start_episode(self, physics, random, world=None) -> None:
+        super().start_episode(physics, random, world)
+        alpha = physics.pendulum_angle()
+        self._counter.reset(alpha if world is None else float(alpha[world]), world)
 
     def after_step(self, physics) -> None:
-        alpha = physics.pendulum_angle()
-        self._turned += wrap_angle(alpha - self._last_alpha)
-        self._last_alpha = alpha
-        revolutions = int(abs(self._turned) // TAU)
-        self._completed_revolution = revolutions > self._revolutions
-        self._revolutions = max(self._revolutions, revolutions)
+        self._counter.update(physics.pendulum_angle())
 
-    def get_reward(self, physics) -> float:
-        return 1.0 if self._completed_revolution else 0.0
+    def get_reward(self, physics):
+        return 1.0 * self._counter.completed
+
+
+class RevolutionCounter:
+    """Net full turns of the pendulum since the start, from its angle sampled each step.
+
+    For one Qube (`worlds=None`) its values are floats, for a batch arrays with one
+    value per world; `update` is the same arithmetic for both.
+    """
+
+    def __init__(self, worlds: int | None = None):
+        def zeros():
+            return 0.0 if worlds is None else np.zeros(worlds)
+
+        self.last_alpha = zeros()
+        self.turned = zeros()
+        """Angle turned since the start (rad), signed."""
+        self.revolutions = zeros()
+        """Most net full turns reached so far (a whole number)."""
+        self.completed = zeros() > 0.0
+        """Whether the last update completed a new turn."""
+
+    def reset(self, alpha: float, world: int | None = None) -> None:
+        """Start counting from pendulum angle `alpha` (rad) (in `world` of a batch)."""
+        if world is None:
+            self.last_alpha, self.turned, self.revolutions, self.completed = alpha, 0.0, 0.0, False
+        else:
+            self.last_alpha[world], self.turned[world], self.revolutions[world] = alpha, 0.0, 0.0
+            self.completed[world] = False
+
+    def update(self, alpha) -> None:
+        """Count the turn from the last angle to `alpha` (rad, wrapped to (-pi, pi])."""
+        self.turned = self.turned + wrap_angle(alpha - self.last_alpha)
+        self.last_alpha = alpha
+        revolutions = abs(self.turned) // TAU
+        self.completed = revolutions > self.revolutions
+        self.revolutions = maximum(self.revolutions, revolutions)
 
 
 @SUITE.add("benchmarking")

@@ -49,10 +49,10 @@ class Swingup(GoalTask):
     v0: first release.
     """
 
-    def initial_state(self) -> np.ndarray:
-        return self.random.uniform(-START_NOISE, START_NOISE, 4) + np.array([0.0, math.pi, 0.0, 0.0])
+    def initial_state(self, random: np.random.RandomState) -> np.ndarray:
+        return random.uniform(-START_NOISE, START_NOISE, 4) + np.array([0.0, math.pi, 0.0, 0.0])
 
-    def pendulum_error(self, physics) -> float:
+    def pendulum_error(self, physics):
         return physics.pendulum_angle()
 
 

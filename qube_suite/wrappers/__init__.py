@@ -7,6 +7,8 @@ from qube_suite.wrappers.registration import (
     gymnasium_id,
     register_environments,
 )
+from qube_suite.wrappers.vector_env import QubeVectorEnv
 
-__all__ = ["GYMNASIUM_IDS", "HARDWARE_GYMNASIUM_IDS", "QubeEnv", "gymnasium_id", "register_environments",
+__all__ = ["GYMNASIUM_IDS", "HARDWARE_GYMNASIUM_IDS", "QubeEnv", "QubeVectorEnv", "gymnasium_id",
+           "register_environments",
            "to_gymnasium"]

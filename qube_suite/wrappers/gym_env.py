@@ -24,6 +24,22 @@ def display_available() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
+def action_space(spec) -> spaces.Box:
+    """The float32 Box of a dm_env action spec (the motor voltage, V)."""
+    return spaces.Box(np.float32(np.min(spec.minimum)), np.float32(np.max(spec.maximum)),
+                      shape=spec.shape, dtype=np.float32)
+
+
+def observation_space(spec) -> spaces.Box:
+    """The flat float32 Box of a dm_env observation spec (an OrderedDict of arrays), keys in order."""
+    lows, highs = [], []
+    for array in spec.values():
+        lows.append(np.broadcast_to(getattr(array, "minimum", -np.inf), array.shape))
+        highs.append(np.broadcast_to(getattr(array, "maximum", np.inf), array.shape))
+    return spaces.Box(np.concatenate(lows).astype(np.float32), np.concatenate(highs).astype(np.float32),
+                      dtype=np.float32)
+
+
 class QubeEnv(gymnasium.Env):
     """A Qube task with Gymnasium's API (obtain one with `to_gymnasium` or `gymnasium.make`).
 
@@ -73,17 +89,8 @@ class QubeEnv(gymnasium.Env):
             "render_fps": int(round(environment.control_frequency)),
         }
 
-        action = environment.action_spec()
-        self.action_space = spaces.Box(np.float32(np.min(action.minimum)), np.float32(np.max(action.maximum)),
-                                       shape=action.shape, dtype=np.float32)
-        lows, highs = [], []
-        for spec in environment.observation_spec().values():
-            low = getattr(spec, "minimum", -np.inf)
-            high = getattr(spec, "maximum", np.inf)
-            lows.append(np.broadcast_to(low, spec.shape))
-            highs.append(np.broadcast_to(high, spec.shape))
-        self.observation_space = spaces.Box(np.concatenate(lows).astype(np.float32),
-                                            np.concatenate(highs).astype(np.float32), dtype=np.float32)
+        self.action_space = action_space(environment.action_spec())
+        self.observation_space = observation_space(environment.observation_spec())
 
     @property
     def task(self):
@@ -98,7 +105,7 @@ class QubeEnv(gymnasium.Env):
         super().reset(seed=seed)
         if seed is not None:
             self.environment.task.random.seed(seed)
-        self.environment.reset()
+        self.environment.start_episode()
         self._episode_over = False
         if self.render_mode == "human":
             self.render()
@@ -116,17 +123,18 @@ class QubeEnv(gymnasium.Env):
         return self._observation(), reward, terminated, truncated, self._info()
 
     def render(self):
+        scene = self.physics.drawable()
         if self.render_mode == "rgb_array":
             if self._renderer is None:
                 height, width = self._render_size
-                self._renderer = mujoco.Renderer(self.physics.model.ptr, height, width)
-            self._renderer.update_scene(self.physics.data.ptr, camera=self._camera)
+                self._renderer = mujoco.Renderer(scene.model.ptr, height, width)
+            self._renderer.update_scene(scene.data.ptr, camera=self._camera)
             return self._renderer.render()
         if self.render_mode == "human":
             if self._viewer is None:
                 from mujoco import viewer
 
-                self._viewer = viewer.launch_passive(self.physics.model.ptr, self.physics.data.ptr)
+                self._viewer = viewer.launch_passive(scene.model.ptr, scene.data.ptr)
             self._viewer.sync()
         return None
 
@@ -140,7 +148,6 @@ class QubeEnv(gymnasium.Env):
         if not self._closed:
             self._closed = True
             self.environment.close()
-            self.physics.free()
 
     def _observation(self) -> np.ndarray:
         return np.array(self.environment.task.observation_values(self.environment.physics), dtype=np.float32)

@@ -8,6 +8,7 @@ import gymnasium
 
 from qube_suite import suite
 from qube_suite.wrappers.gym_env import QubeEnv
+from qube_suite.wrappers.vector_env import make_vector_env
 
 NAMESPACE = "QubeSuite"
 
@@ -45,10 +46,12 @@ def make_env(task: str, domain: str = "qube", render_mode: str | None = None, ra
 
 
 def register_environments() -> None:
-    """Register every id of `GYMNASIUM_IDS` and `HARDWARE_GYMNASIUM_IDS` (once)."""
+    """Register every id of `GYMNASIUM_IDS` (for `gymnasium.make` and `gymnasium.make_vec`) and of
+    `HARDWARE_GYMNASIUM_IDS` (`gymnasium.make`), once."""
     for env_id, task in GYMNASIUM_IDS.items():
         if env_id not in gymnasium.registry:
-            gymnasium.register(env_id, entry_point=make_env, kwargs={"task": task})
+            gymnasium.register(env_id, entry_point=make_env, vector_entry_point=make_vector_env,
+                               kwargs={"task": task})
     for env_id, task in HARDWARE_GYMNASIUM_IDS.items():
         if env_id not in gymnasium.registry:
             gymnasium.register(env_id, entry_point=make_env, nondeterministic=True,
