@@ -82,6 +82,11 @@ def pendulum_inertia(pendulum_mass: float, pendulum_length: float) -> float:
     return pendulum_mass * pendulum_length**2 / 12.0
 
 
+def may_be_zero(name: str) -> bool:
+    """Whether parameter `name` may be 0 (damping and the accuracy options); none may be negative."""
+    return PARAMETERS[name].nominal == 0.0 or name.endswith("damping")
+
+
 def resolve(overrides: dict[str, float] | None = None) -> dict[str, float]:
     """Nominal parameters updated by `overrides`; a name that is not a parameter is a ValueError."""
     values = dict(NOMINAL)
@@ -91,7 +96,7 @@ def resolve(overrides: dict[str, float] | None = None) -> dict[str, float]:
         value = float(value)
         if not value == value or value in (float("inf"), float("-inf")):
             raise ValueError(f"parameter {name!r} must be finite, got {value}")
-        minimum_is_zero = PARAMETERS[name].nominal == 0.0 or name.endswith("damping")
+        minimum_is_zero = may_be_zero(name)
         if value < 0.0 or (value == 0.0 and not minimum_is_zero):
             raise ValueError(f"parameter {name!r} must be {'>= 0' if minimum_is_zero else '> 0'}, "
                              f"got {value}")
