@@ -53,8 +53,9 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
             `observation` ("state" or "trig").
         environment_kwargs: `control_frequency` (Hz, default 250) and
             `time_limit` (s, default 8.192).
-        randomization: domain randomization; not available in this release, so
-            anything but None raises ValueError.
+        randomization: domain randomization drawn at every reset: a preset name
+            ("none", "mild", "moderate", "sim2real"), a config mapping, the path of
+            a YAML file, or a `qube_suite.randomization.Randomization`; None: off.
 
     Raises:
         ValueError: unknown names or invalid arguments; the message lists valid values.
@@ -69,11 +70,8 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
     if unknown:
         raise ValueError(f"unknown environment_kwargs {sorted(unknown)}; "
                          f"valid: {', '.join(ENVIRONMENT_KWARGS)}")
-    if randomization is not None:
-        raise ValueError("randomization is not available in this release of qube_suite; pass None")
-
     task = _TASKS[task_name](**dict(task_kwargs or {}))
     domain = importlib.import_module(_DOMAIN_MODULES[domain_name])
     frequency = environment_kwargs.get("control_frequency", DEFAULT_CONTROL_FREQUENCY)
     physics = domain.make_physics(control_frequency=frequency)
-    return Environment(physics, task, **environment_kwargs)
+    return Environment(physics, task, randomization=randomization, **environment_kwargs)
