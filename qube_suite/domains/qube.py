@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import pathlib
+import types
 from collections.abc import Mapping, Sequence
 
 import mujoco
@@ -25,6 +26,11 @@ MODEL_PATH = pathlib.Path(__file__).resolve().parent.parent / "assets" / "qube.x
 MAX_TIMESTEP = 0.004
 """Largest physics timestep (s): RK4 at 4 ms keeps trajectories within 1e-5 rad of a
 64x finer run over 2 s (benchmarks/timestep_convergence.py)."""
+
+_PARAMETER_FIELDS = ("body_mass", "body_inertia", "body_pos", "body_ipos", "dof_damping", "dof_armature",
+                     "dof_frictionloss", "jnt_stiffness", "actuator_gainprm", "actuator_biasprm",
+                     "geom_pos", "geom_size")
+"""The compiled model's arrays `set_parameters` writes (views kept, as a reset writes them often)."""
 
 MIN_CONTROL_FREQUENCY = 10.0
 MAX_CONTROL_FREQUENCY = 2000.0
@@ -74,6 +80,8 @@ class Physics(dm_mujoco.Physics):
         self._arm_dof = int(model.jnt_dofadr[self._ids["arm_joint"]])
         self._pendulum_dof = int(model.jnt_dofadr[self._ids["pendulum_joint"]])
         self._led_rgba = model.geom_rgba[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "led")]
+        self._arrays = types.SimpleNamespace(**{name: getattr(model, name) for name in _PARAMETER_FIELDS})
+        self._options = model.opt
         if not hasattr(self, "_parameters"):
             self._parameters = dict(params.NOMINAL)
         self._sensor_model = None
@@ -103,47 +111,47 @@ class Physics(dm_mujoco.Physics):
         unchanged then.
         """
         p = params.resolve(dict(overrides or {}))
-        m, ids = self._model_ptr, self._ids
+        a, ids = self._arrays, self._ids
         arm, pendulum = ids["arm"], ids["pendulum"]
 
         jr = params.arm_inertia(p["arm_mass"], p["arm_length"])
-        m.body_mass[arm] = p["arm_mass"]
-        m.body_inertia[arm, 0] = m.body_inertia[arm, 2] = jr
-        m.body_pos[pendulum] = (0.0, -p["arm_length"], 0.0)
+        a.body_mass[arm] = p["arm_mass"]
+        a.body_inertia[arm, 0] = a.body_inertia[arm, 2] = jr
+        a.body_pos[pendulum, 1] = -p["arm_length"]
 
         jp = params.pendulum_inertia(p["pendulum_mass"], p["pendulum_length"])
-        m.body_mass[pendulum] = p["pendulum_mass"]
-        m.body_ipos[pendulum] = (0.0, 0.0, p["pendulum_length"] / 2.0)
-        m.body_inertia[pendulum] = (jp, jp, 0.5 * p["pendulum_mass"] * params.PENDULUM_ROD_RADIUS**2)
+        a.body_mass[pendulum] = p["pendulum_mass"]
+        a.body_ipos[pendulum, 2] = p["pendulum_length"] / 2.0
+        a.body_inertia[pendulum] = (jp, jp, 0.5 * p["pendulum_mass"] * params.PENDULUM_ROD_RADIUS**2)
 
-        m.dof_damping[self._arm_dof] = p["arm_damping"]
-        m.dof_damping[self._pendulum_dof] = p["pendulum_damping"]
-        m.dof_armature[self._arm_dof] = p["rotor_inertia"]
-        m.dof_frictionloss[self._arm_dof] = p["arm_friction"]
-        m.dof_frictionloss[self._pendulum_dof] = p["pendulum_friction"]
+        a.dof_damping[self._arm_dof] = p["arm_damping"]
+        a.dof_damping[self._pendulum_dof] = p["pendulum_damping"]
+        a.dof_armature[self._arm_dof] = p["rotor_inertia"]
+        a.dof_frictionloss[self._arm_dof] = p["arm_friction"]
+        a.dof_frictionloss[self._pendulum_dof] = p["pendulum_friction"]
         constraint = int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
         if p["arm_friction"] or p["pendulum_friction"]:  # Coulomb friction is a constraint in MuJoCo
-            m.opt.disableflags &= ~constraint
+            self._options.disableflags &= ~constraint
         else:
-            m.opt.disableflags |= constraint
-        m.jnt_stiffness[ids["arm_joint"]] = p["cable_stiffness"]
+            self._options.disableflags |= constraint
+        a.jnt_stiffness[ids["arm_joint"]] = p["cable_stiffness"]
 
         motor = ids["motor"]
-        m.actuator_gainprm[motor, 0] = p["motor_torque_constant"] / p["motor_resistance"]
-        m.actuator_biasprm[motor, 2] = (
+        a.actuator_gainprm[motor, 0] = p["motor_torque_constant"] / p["motor_resistance"]
+        a.actuator_biasprm[motor, 2] = (
             -p["motor_torque_constant"] * p["motor_back_emf"] / p["motor_resistance"])
-        m.opt.gravity[:] = (0.0, 0.0, -p["gravity"])
+        self._options.gravity[2] = -p["gravity"]
 
         # Drawing follows the lengths.
         half_arm = p["arm_length"] / 2.0
-        m.geom_pos[ids["arm_geom"]] = (0.0, -half_arm, 0.0)
-        m.geom_size[ids["arm_geom"], 1] = half_arm
-        m.geom_pos[ids["encoder_geom"], 1] = -p["arm_length"] + 0.014
-        m.geom_pos[ids["pendulum_geom"]] = (0.0, 0.0, p["pendulum_length"] / 2.0)
-        m.geom_size[ids["pendulum_geom"], 1] = p["pendulum_length"] / 2.0
+        a.geom_pos[ids["arm_geom"], 1] = -half_arm
+        a.geom_size[ids["arm_geom"], 1] = half_arm
+        a.geom_pos[ids["encoder_geom"], 1] = -p["arm_length"] + 0.014
+        a.geom_pos[ids["pendulum_geom"], 2] = p["pendulum_length"] / 2.0
+        a.geom_size[ids["pendulum_geom"], 1] = p["pendulum_length"] / 2.0
 
         state = self._exact_state()
-        mujoco.mj_setConst(m, self._data_ptr)  # mass-dependent constants
+        mujoco.mj_setConst(self._model_ptr, self._data_ptr)  # mass-dependent constants
         self._parameters = p
         self._set_state(state)
 
