@@ -4,16 +4,18 @@
 - `mild`: manufacturing tolerances of the published parameters; no effects.
 - `moderate`: wider parameter ranges, some friction and cable spring, and sensor and
   actuator effects, for policies meant to be robust in general.
-- `sim2real`: covers what a real Qube (and the hardware substitute's plant) adds to
-  the nominal model: Coulomb friction on both joints, the encoder cable's spring,
-  2048-count encoders, velocities from Quanser's 50 rad/s filter, and up to one
-  control step of actuation lag (the board's latency; the motor inductance's
-  0.14 ms electrical time constant is far shorter). The amplifier's saturation and
-  current limit are not included: at the tasks' default 3 V limit the motor draws
-  at most 3 V / 8.4 ohm = 0.36 A, below them.
+- `sim2real`: covers what a real Qube, and the hardware substitute's plant, add to
+  the nominal model: Coulomb friction on both joints and the encoder cable's
+  spring (ranges from 0 to twice the plant's estimates of 1e-3 N m, 5e-5 N m and
+  1e-3 N m/rad), 2048-count encoders, velocities from Quanser's 50 rad/s filter,
+  and up to one control step of actuation lag (board latency; the motor
+  inductance's electrical time constant, Lm / Rm = 0.14 ms, is far shorter). The
+  amplifier's limits are left out: within the tasks' voltage limits (3 V by
+  default, at most 10 V) they act rarely if ever (+-15 V range, 1.8 A current
+  limit against 3 V / 8.4 ohm = 0.36 A at stall).
 
-Friction and spring ranges are stated as the motor voltage that balances them:
-the motor gives kt / Rm = 0.005 N m per volt, so 1.5e-3 N m is 0.3 V.
+Friction and spring torques compare with the motor's kt / Rm = 0.005 N m per volt:
+1e-3 N m is the torque of 0.2 V.
 """
 
 from __future__ import annotations
@@ -71,8 +73,8 @@ PRESETS: dict[str, dict[str, Any]] = {
             "motor_resistance": _scale(0.85, 1.15), "motor_torque_constant": _scale(0.9, 1.1),
             "motor_back_emf": _scale(0.9, 1.1), "rotor_inertia": _scale(0.8, 1.2),
             "arm_damping": _log_scale(0.3, 3.0), "pendulum_damping": _log_scale(0.3, 3.0),
-            "arm_friction": _absolute(0.0, 1.5e-3), "pendulum_friction": _absolute(0.0, 5e-5),
-            "cable_stiffness": _absolute(0.0, 1.5e-3),
+            "arm_friction": _absolute(0.0, 2e-3), "pendulum_friction": _absolute(0.0, 1e-4),
+            "cable_stiffness": _absolute(0.0, 2e-3),
         },
         "effects": {
             "quantization": {"counts_per_revolution": 2048},
