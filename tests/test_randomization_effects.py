@@ -8,6 +8,7 @@ import pytest
 from qube_suite import randomization, suite
 from qube_suite.randomization import (
     ActionDelay,
+    BatchChain,
     Chain,
     ControlJitter,
     DeadZone,
@@ -115,7 +116,7 @@ def test_observation_noise_has_the_configured_std():
 
 
 def test_velocity_filter_lags_like_the_continuous_filter():
-    """A constant speed from rest: the estimate rises as 1 - exp(-50 t), to within 0.13% of the speed."""
+    """A constant speed from rest: the estimate rises as the continuous filter's 1 - exp(-50 t)."""
     speed, steps = 3.0, 100
     t = np.arange(steps + 1) * PERIOD
     angles = np.stack([speed * t, np.zeros_like(t)], axis=1)
@@ -124,9 +125,8 @@ def test_velocity_filter_lags_like_the_continuous_filter():
     velocity_filter = VelocityFilter(50.0, PERIOD)
     estimates = [velocity_filter.reset(states[0])[2]] + [velocity_filter(x)[2] for x in states[1:]]
     analytic = speed * (1.0 - np.exp(-50.0 * t))
-    np.testing.assert_allclose(estimates, analytic, atol=1.3e-3 * speed)
-    assert estimates[-1] == pytest.approx(speed, rel=1e-6)  # exact for a constant speed
-    assert estimates[5] < 0.75 * speed  # it really lags: 1 - exp(-1) after 20 ms
+    np.testing.assert_allclose(estimates, analytic, rtol=1e-9, atol=1e-12)
+    assert estimates[5] == pytest.approx(speed * (1 - math.exp(-1)))  # 63% after 1/a = 20 ms
 
 
 def test_velocity_filter_matches_the_filter_frequency_response():
@@ -190,30 +190,41 @@ def test_all_effects_keep_observations_finite_and_bad_actions_change_nothing():
 
 
 def test_effects_on_arrays_for_n_environments_match_one_at_a_time():
+    """The array path (n Qubes, per-environment settings) gives the numbers of the one-Qube float path."""
     rng = np.random.default_rng(0)
-    states = rng.uniform(-3, 3, (30, 3, 4))
-    volts = rng.uniform(-3, 3, (30, 3))
-    delays, counts, cutoffs = np.array([0, 1, 2]), np.array([256, 1024, 2048]), np.array([20.0, 50.0, 100.0])
+    states = rng.uniform(-4, 4, (60, 3, 4))
+    volts = rng.uniform(-4, 4, (60, 3))
+    durations = np.full((60, 3), PERIOD)
+    delays, counts, cutoffs = np.array([0, 1, 3]), np.array([256, 1024, 2048]), np.array([20.0, 50.0, 100.0])
+    stds = np.array([[0.1, 0.2, 0.3, 0.4], [0.0] * 4, [1.0, 1.0, 2.0, 2.0]])
 
-    def sensor(i=None):
-        pick = (lambda a: a) if i is None else (lambda a: a[i])
-        return Chain([Quantization(pick(counts)), VelocityFilter(pick(cutoffs), PERIOD),
-                      ObservationDelay(pick(delays))])
+    def chains(pick, chain, seed):
+        """Sensor, actuator and timing chains; `pick` selects settings, `seed` the noise generator."""
+        noise_rng, jitter_rng = np.random.RandomState(seed), np.random.RandomState(seed + 100)
+        return (chain([Quantization(pick(counts)), VelocityFilter(pick(cutoffs), PERIOD),
+                       ObservationNoise(pick(stds), noise_rng), ObservationDelay(pick(delays))]),
+                chain([ActionDelay(pick(delays)), VoltageOffset(pick(cutoffs) / 100),
+                       DeadZone(pick(cutoffs) / 40), Saturation(pick(cutoffs) / 30)]),
+                chain([ControlJitter(pick(cutoffs) / 250, jitter_rng)]))
 
-    def actuator(i=None):
-        pick = (lambda a: a) if i is None else (lambda a: a[i])
-        return Chain([ActionDelay(pick(delays)), VoltageOffset(pick(cutoffs) / 100),
-                      DeadZone(pick(cutoffs) / 200), Saturation(pick(cutoffs) / 40)])
-
-    batch_sensor, batch_actuator = sensor(), actuator()
-    batch = [batch_sensor.reset(states[0])] + [batch_sensor(x) for x in states[1:]]
-    batch_volts = [batch_actuator.reset(np.zeros(3))] + [batch_actuator(v) for v in volts[1:]]
     for i in range(3):
-        single_sensor, single_actuator = sensor(i), actuator(i)
-        single = [single_sensor.reset(states[0, i])] + [single_sensor(x[i]) for x in states[1:]]
-        single_volts = [single_actuator.reset(0.0)] + [single_actuator(v[i]) for v in volts[1:]]
-        np.testing.assert_array_equal(np.array(batch)[:, i], single)
-        np.testing.assert_array_equal(np.array(batch_volts)[:, i], single_volts)
+        # With one noise stream per environment, the batch of one is compared with the float path.
+        batch = chains(lambda a, i=i: a[[i]], BatchChain, i)
+        single = chains(lambda a, i=i: a[i], Chain, i)
+        for chain_batch, chain_single, signal in zip(batch, single, (states, volts, durations), strict=True):
+            outputs_batch = [chain_batch.reset(signal[0, [i]])] + [chain_batch(x[[i]]) for x in signal[1:]]
+            outputs_single = [chain_single.reset(signal[0, i].tolist())] + [chain_single(x[i].tolist())
+                                                                            for x in signal[1:]]
+            np.testing.assert_array_equal(np.array(outputs_batch)[:, 0], np.array(outputs_single))
+
+    # Three at once with per-environment settings: noiseless, so the streams do not matter.
+    sensor = BatchChain([Quantization(counts), VelocityFilter(cutoffs, PERIOD), ObservationDelay(delays)])
+    outputs = [sensor.reset(states[0])] + [sensor(x) for x in states[1:]]
+    for i in range(3):
+        single = Chain([Quantization(counts[i]), VelocityFilter(cutoffs[i], PERIOD),
+                        ObservationDelay(delays[i])])
+        expected = [single.reset(states[0, i].tolist())] + [single(x[i].tolist()) for x in states[1:]]
+        np.testing.assert_array_equal(np.array(outputs)[:, i], np.array(expected))
 
 
 def test_resetting_some_of_n_environments_keeps_the_others():

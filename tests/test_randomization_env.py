@@ -168,3 +168,17 @@ def test_jitter_at_a_control_frequency_with_several_substeps():
     durations = np.diff(times)
     assert 0.007 - 1e-12 <= durations.min() < 0.0075 and 0.0125 < durations.max() <= 0.013 + 1e-12
     assert env.physics.timestep() == pytest.approx(0.01 / 3)  # the nominal timestep is kept
+
+
+def test_effects_start_afresh_every_episode():
+    env = suite.load("qube", "swingup", task_kwargs={"random": 0}, randomization={"effects": {
+        "action_delay": {"steps": 2}, "observation_delay": {"steps": 1}}})
+    for _ in range(3):
+        timestep = env.reset()
+        start = env.physics.true_state()
+        np.testing.assert_array_equal(timestep.observation["state"], start)
+        motor = []
+        for volts in (1.0, 2.0, 3.0):
+            timestep = env.step([volts])
+            motor.append(float(env.physics.data.ctrl[0]))
+        assert motor == [0.0, 0.0, 1.0]  # the delay line holds 0 V again, not the last episode's commands

@@ -13,8 +13,8 @@ to the domain (`randomizer.py`).
 """
 
 from qube_suite.randomization.amplifier import DeadZone, Saturation, VoltageOffset
-from qube_suite.randomization.base import Chain, Effect, Field
-from qube_suite.randomization.catalog import EFFECTS, build
+from qube_suite.randomization.base import BatchChain, Chain, Effect, Field
+from qube_suite.randomization.catalog import EFFECTS
 from qube_suite.randomization.config import Randomization, load, parse
 from qube_suite.randomization.delays import ActionDelay, ObservationDelay
 from qube_suite.randomization.distributions import Distribution
@@ -25,8 +25,8 @@ from qube_suite.randomization.sensors import ObservationNoise, Quantization, Vel
 from qube_suite.randomization.timing import ControlJitter
 
 __all__ = [
-    "EFFECTS", "PRESETS", "ActionDelay", "Chain", "ControlJitter", "DeadZone", "Distribution", "Effect",
-    "Field", "ObservationDelay", "ObservationNoise", "Quantization", "Randomization", "Randomizer", "Sample",
-    "Saturation", "VelocityFilter", "VoltageOffset", "build", "load", "parse", "sample", "sample_effects",
-    "sample_parameters",
+    "EFFECTS", "PRESETS", "ActionDelay", "BatchChain", "Chain", "ControlJitter", "DeadZone", "Distribution",
+    "Effect", "Field", "ObservationDelay", "ObservationNoise", "Quantization", "Randomization", "Randomizer",
+    "Sample", "Saturation", "VelocityFilter", "VoltageOffset", "load", "parse", "sample",
+    "sample_effects", "sample_parameters",
 ]

@@ -1,20 +1,26 @@
 """The effect interface: a sensor or actuator imperfection that any Qube domain can apply, to one or n Qubes.
 
-An effect transforms one signal once per control step:
+An effect transforms one signal once per control step. For one Qube, on Python
+floats (the fast path of a single environment):
 
-    y = effect.reset(x)    # start afresh from x (the initial state, or 0 V); the output for x
-    y = effect(x)          # the output one control step later
+    y = effect.reset_one(x)    # start afresh from x (the initial state, or 0 V); the output for x
+    y = effect.step_one(x)     # the output one control step later
 
-Signals are float64 arrays: a state [theta, alpha, dtheta, dalpha] (rad, rad/s;
-angles wrapped to (-pi, pi]) of shape (4,), or (n, 4) for n environments; a motor
-voltage (V) or a step duration (s) of shape (), or (n,). Settings are numbers
-shared by all environments, or arrays with one entry per environment along their
-first axis. Memory (delay lines, filter states) lives in arrays shaped by the
-signal given to `reset`. `effect.reset(x, rows)` restarts only the environments
-`rows` (integer indices) from their signals `x` (first axis len(rows)) and returns
-their outputs; the others keep their memory (a caller that redraws per-environment
-settings writes them into the setting arrays first). Effects never modify their
-input.
+where a state is a sequence of 4 floats [theta, alpha, dtheta, dalpha] (rad,
+rad/s; angles wrapped to (-pi, pi]) and a motor voltage (V) or a step duration
+(s) is one float. For n Qubes at once, on float64 arrays of shape (n, 4) or (n,):
+
+    y = effect.reset(x, rows=None)
+    y = effect(x)
+
+Settings are numbers, or (for n Qubes) arrays with one entry per environment
+along their first axis; memory (delay lines, filter states) then lives in arrays
+shaped by the signal given to `reset`. `effect.reset(x, rows)` restarts only the
+environments `rows` (integer indices) from their signals `x` (first axis
+len(rows)) and returns their outputs; the others keep their memory (a caller
+that redraws per-environment settings writes them into the setting arrays
+first). Both paths give identical numbers; effects never modify their input.
+`Chain` and `BatchChain` apply several effects in order.
 """
 
 from __future__ import annotations
@@ -25,9 +31,6 @@ from collections.abc import Iterable, Mapping
 from typing import ClassVar
 
 import numpy as np
-
-SIGNALS = ("state", "voltage", "duration")
-"""What an effect transforms: the measured state, the motor voltage, the control period."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,9 +67,10 @@ class Field:
 class Effect:
     """Base of the effects (see the module docstring for the interface).
 
-    Subclasses set `name` (their key in a config's `effects`), `signal` (one of
-    SIGNALS), `fields` and `stochastic` (whether they draw from a generator), and
-    implement `output` if they have no memory, or `reset` and `__call__` if they do.
+    Subclasses set `name` (their key in a config's `effects`), `signal` (what they
+    transform: "state", "voltage" or "duration"), `fields` and `stochastic`
+    (whether they draw from a generator), and implement `output` and `output_one`
+    if they have no memory, or the reset and step methods of both paths if they do.
     """
 
     name: ClassVar[str]
@@ -80,10 +84,20 @@ class Effect:
         return settings
 
     @classmethod
-    def from_settings(cls, settings: Mapping, control_period: float,
-                      rng: np.random.Generator | None) -> Effect:
-        """The effect for one episode's `settings` at `control_period` (s), drawing from `rng`."""
+    def from_settings(cls, settings: Mapping, control_period: float, rng) -> Effect:
+        """The effect for one episode's `settings` at `control_period` (s); stochastic effects
+        draw from `rng` (a numpy Generator or RandomState)."""
         return cls(**settings)
+
+    def reset_one(self, x):
+        return self.output_one(x)
+
+    def step_one(self, x):
+        return self.output_one(x)
+
+    def output_one(self, x):
+        """Output for one Qube's `x` (Python floats) of a memoryless effect."""
+        raise NotImplementedError
 
     def reset(self, x: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         return self.output(x, rows)
@@ -92,7 +106,7 @@ class Effect:
         return self.output(x, None)
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
-        """Output for `x` of a memoryless effect; `rows` selects per-environment settings."""
+        """Output for the arrays `x` of a memoryless effect; `rows` selects per-environment settings."""
         raise NotImplementedError
 
 
@@ -102,10 +116,28 @@ def per_env(setting: np.ndarray, rows: np.ndarray | None, shared_ndim: int = 0) 
 
 
 class Chain:
-    """Effects applied in order, itself an effect; a domain's sensor or actuator model.
+    """Effects applied in order to one Qube's signal: a domain's sensor or actuator model.
 
-    Takes any array-like signal (a tuple of 4 floats, a float) and returns a float64 array.
+    `reset(x)` when the state is set directly or the episode starts, a call per
+    control step; Python floats in and out (4 for a state, 1 for a voltage).
     """
+
+    def __init__(self, effects: Iterable[Effect]):
+        self.effects = tuple(effects)
+
+    def reset(self, x):
+        for effect in self.effects:
+            x = effect.reset_one(x)
+        return x
+
+    def __call__(self, x):
+        for effect in self.effects:
+            x = effect.step_one(x)
+        return x
+
+
+class BatchChain:
+    """Effects applied in order to the signals of n Qubes (float64 arrays), itself an effect."""
 
     def __init__(self, effects: Iterable[Effect]):
         self.effects = tuple(effects)

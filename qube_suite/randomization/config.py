@@ -18,6 +18,7 @@ that could give an impossible value (a mass <= 0, a negative dead-zone, ...).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
 import os
@@ -48,7 +49,7 @@ class Randomization:
     parameters: dict[str, Distribution] = dataclasses.field(default_factory=dict)
     effects: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
 
-    @property
+    @functools.cached_property
     def stochastic(self) -> bool:
         """Whether an effect draws random numbers at every step (noise, jitter)."""
         return any(EFFECTS[name].stochastic for name in self.effects)

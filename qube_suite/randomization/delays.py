@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 from collections.abc import Mapping
 
 import numpy as np
@@ -33,9 +34,21 @@ class Delay(Effect):
 
     def __init__(self, steps: int | np.ndarray):
         self.steps = np.asarray(steps, dtype=np.intp)
-        if (self.steps < 0).any():
+        if self.steps.ndim == 0:
+            smallest = largest = int(self.steps)
+        else:
+            smallest, largest = int(self.steps.min()), int(self.steps.max())
+        if smallest < 0:
             raise ValueError(f"{self.name}: steps must be >= 0, got {steps}")
-        self._length = int(self.steps.max()) + 1
+        self._length = largest + 1
+
+    def reset_one(self, x):
+        self._queue = collections.deque([x] * self._length, maxlen=self._length)
+        return x
+
+    def step_one(self, x):
+        self._queue.append(x)
+        return self._queue[0]
 
     def reset(self, x: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         if rows is None:

@@ -115,15 +115,18 @@ class Distribution:
         return (lower * nominal, upper * nominal) if self.relative else (lower, upper)
 
     def sample(self, random: np.random.RandomState, nominal: float = 1.0) -> float | int:
-        """One draw from `random`: the value itself, or `nominal` times the draw if relative."""
-        if self.integer:
-            return int(random.randint(int(self.low), int(self.high) + 1))
-        if self.kind == "uniform":
-            value = random.uniform(self.low, self.high)
-        elif self.kind == "normal":
-            value = random.normal(self.mean, self.std)
+        """One draw from `random` (a numpy RandomState or Generator): the value itself, or
+        `nominal` times the draw if relative."""
+        if self.kind == "normal":
+            value = self.mean + self.std * random.standard_normal()
         else:
-            value = math.exp(random.uniform(math.log(self.low), math.log(self.high)))
+            u = random.random()
+            if self.integer:
+                return int(self.low + math.floor(u * (self.high - self.low + 1.0)))
+            if self.kind == "uniform":
+                value = self.low + (self.high - self.low) * u
+            else:
+                value = math.exp(math.log(self.low) + (math.log(self.high) - math.log(self.low)) * u)
         lower, upper = self.clip
         if lower is not None and value < lower:
             value = lower

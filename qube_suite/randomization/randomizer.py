@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from qube_suite.randomization import catalog
-from qube_suite.randomization.base import Chain
+from qube_suite.randomization.base import Chain, Effect
+from qube_suite.randomization.catalog import EFFECTS
 from qube_suite.randomization.config import Randomization
 from qube_suite.randomization.sampling import Sample, sample
 
@@ -40,10 +40,11 @@ class Randomizer:
             if unmodelled:
                 raise ValueError(f"{type(physics).__name__} does not model {', '.join(unmodelled)}: "
                                  f"randomizing it would change nothing")
-        self._signals = {catalog.EFFECTS[name].signal for name in config.effects}
-        for signal in self._signals:
+        self._rng = np.random.RandomState()  # reseeded at every episode
+        self._effects: dict[str, tuple[dict, Effect]] = {}  # name -> (settings, effect) of the last episode
+        for signal in {EFFECTS[name].signal for name in config.effects}:
             if not hasattr(physics, HOOKS[signal]):
-                names = [name for name in config.effects if catalog.EFFECTS[name].signal == signal]
+                names = [name for name in config.effects if EFFECTS[name].signal == signal]
                 raise ValueError(f"{type(physics).__name__} cannot apply {', '.join(names)} "
                                  f"(it has no {HOOKS[signal]})")
 
@@ -51,13 +52,22 @@ class Randomizer:
         """Draw the next episode's values from `random` and apply them; returns what was drawn.
 
         Call before the episode's initial state is set: the effects start afresh
-        from it when it is.
+        from it when it is. Effects whose settings did not change since the last
+        episode are kept (the domain restarts them), the others built anew.
         """
         drawn = sample(self.config, random)
         if self.config.parameters:
             self._physics.set_parameters(drawn.parameters)
-        rng = None if drawn.seed is None else np.random.default_rng(drawn.seed)
-        effects = catalog.build(drawn.effects, self._control_period, rng)
-        for signal in self._signals:
-            getattr(self._physics, HOOKS[signal])(Chain(effects[signal]))
+        if drawn.seed is not None:
+            self._rng.seed(drawn.seed)
+        changed = set()
+        for name, settings in drawn.effects.items():
+            kept = self._effects.get(name)
+            if kept is None or kept[0] != settings:
+                cls = EFFECTS[name]
+                self._effects[name] = settings, cls.from_settings(settings, self._control_period, self._rng)
+                changed.add(cls.signal)
+        for signal in changed:
+            chain = [effect for name, (_, effect) in self._effects.items() if EFFECTS[name].signal == signal]
+            getattr(self._physics, HOOKS[signal])(Chain(chain))
         return drawn

@@ -17,9 +17,9 @@ class Sample:
     """What one episode drew.
 
     `parameters`: name -> value of each randomized physical parameter (the others
-    are nominal). `effects`: effect name -> its settings for the episode. `seed`:
-    of the generator the stochastic effects (noise, jitter) draw from at every
-    step; None when no such effect is on.
+    are nominal). `effects`: effect name -> its settings for the episode. `seed`
+    (in [0, 2**32)): of the generator the stochastic effects (noise, jitter) draw
+    from at every step; None when no such effect is on.
     """
 
     parameters: dict[str, float]
@@ -48,5 +48,5 @@ def sample(config: Randomization, random: np.random.RandomState) -> Sample:
     """
     parameters = sample_parameters(config, random)
     effects = sample_effects(config, random)
-    seed = int(random.randint(0, 2**32, dtype=np.int64)) if config.stochastic else None
+    seed = int(random.random() * 2.0**32) if config.stochastic else None
     return Sample(parameters, effects, seed)

@@ -25,6 +25,11 @@ class Quantization(Effect):
 
     def __init__(self, counts_per_revolution: int | np.ndarray = ENCODER_COUNTS_PER_REVOLUTION):
         self.resolution = TAU / np.asarray(counts_per_revolution, dtype=np.float64)
+        self._resolution = float(self.resolution) if self.resolution.ndim == 0 else None
+
+    def output_one(self, x):
+        q = self._resolution
+        return [wrap_angle(q * round(x[0] / q)), wrap_angle(q * round(x[1] / q)), x[2], x[3]]
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
         resolution = per_env(self.resolution, rows)[..., None]
@@ -37,13 +42,15 @@ class VelocityFilter(Effect):
     """Velocities estimated from the measured angles by Quanser's filter a s / (s + a)
     (a = `cutoff`, 50 rad/s on the Qube) instead of exact.
 
-    Discretised with Tustin's (bilinear) method at the control period T:
-    v_k = r v_(k-1) + g (angle_k - angle_(k-1)), r = (2 - aT) / (2 + aT), g = 2a / (2 + aT).
-    Unlike the zero-order-hold equivalent, which overestimates a constant speed by
-    aT / (1 - exp(-aT)) (10% at 250 Hz), Tustin's is exact for a constant speed, and
-    its response to a speed step follows the continuous filter's 1 - exp(-a t) to
-    within 0.13% of the step at 250 Hz. Angle differences are wrapped, so a full turn
-    is no jump. At reset the filter is settled: it starts from the exact velocities.
+    Discretised ramp-invariantly (exact for an angle varying linearly between
+    samples, i.e. a first-order hold) at the control period T:
+    v_k = p v_(k-1) + (1 - p) / T (angle_k - angle_(k-1)), p = exp(-a T).
+    Its pole is the continuous filter's and a constant speed comes out exact; the
+    zero-order-hold equivalent would overestimate every speed by aT / (1 - p) (10%
+    at 250 Hz), Tustin's moves the pole (0.8182 instead of 0.8187). The hardware
+    domain's estimator uses the same discretisation. Angle differences are
+    wrapped, so a full turn is no jump. At reset the filter is settled: it starts
+    from the exact velocities.
     """
 
     name = "velocity_filter"
@@ -56,9 +63,22 @@ class VelocityFilter(Effect):
         return cls(settings["cutoff"], control_period)
 
     def __init__(self, cutoff: float | np.ndarray, control_period: float):
-        a_t = np.asarray(cutoff, dtype=np.float64) * control_period
-        self.pole = (2.0 - a_t) / (2.0 + a_t)
-        self.gain = 2.0 * np.asarray(cutoff, dtype=np.float64) / (2.0 + a_t)
+        self.pole = np.exp(-np.asarray(cutoff, dtype=np.float64) * control_period)
+        self.gain = (1.0 - self.pole) / control_period
+        if self.pole.ndim == 0:
+            self._pole, self._gain = float(self.pole), float(self.gain)
+
+    def reset_one(self, x):
+        self._last = x
+        return x
+
+    def step_one(self, x):
+        theta, alpha, _, _ = x
+        last_theta, last_alpha, dtheta, dalpha = self._last
+        self._last = y = [theta, alpha,
+                          self._pole * dtheta + self._gain * wrap_angle(theta - last_theta),
+                          self._pole * dalpha + self._gain * wrap_angle(alpha - last_alpha)]
+        return y
 
     def reset(self, x: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         if rows is None:
@@ -89,13 +109,18 @@ class ObservationNoise(Effect):
                            minimum=0.0, size=4)}
 
     @classmethod
-    def from_settings(cls, settings: Mapping, control_period: float,
-                      rng: np.random.Generator) -> ObservationNoise:
+    def from_settings(cls, settings: Mapping, control_period: float, rng) -> ObservationNoise:
         return cls(settings["std"], rng)
 
-    def __init__(self, std, rng: np.random.Generator):
+    def __init__(self, std, rng):
         self.std = np.asarray(std, dtype=np.float64)
         self._rng = rng
+        self._std = self.std.tolist()
+
+    def output_one(self, x):
+        n0, n1, n2, n3 = self._rng.standard_normal(4).tolist()
+        s0, s1, s2, s3 = self._std
+        return [wrap_angle(x[0] + s0 * n0), wrap_angle(x[1] + s1 * n1), x[2] + s2 * n2, x[3] + s3 * n3]
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
         y = x + per_env(self.std, rows, shared_ndim=1) * self._rng.standard_normal(x.shape)

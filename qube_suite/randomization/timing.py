@@ -21,13 +21,16 @@ class ControlJitter(Effect):
                                 minimum=0.0, maximum=0.5)}
 
     @classmethod
-    def from_settings(cls, settings: Mapping, control_period: float,
-                      rng: np.random.Generator) -> ControlJitter:
+    def from_settings(cls, settings: Mapping, control_period: float, rng) -> ControlJitter:
         return cls(settings["fraction"], rng)
 
-    def __init__(self, fraction: float | np.ndarray, rng: np.random.Generator):
+    def __init__(self, fraction: float | np.ndarray, rng):
         self.fraction = np.asarray(fraction, dtype=np.float64)
         self._rng = rng
+        self._fraction = self.fraction.tolist()
+
+    def output_one(self, x: float) -> float:
+        return x * (1.0 + self._fraction * (2.0 * self._rng.random() - 1.0))
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
-        return x * (1.0 + per_env(self.fraction, rows) * self._rng.uniform(-1.0, 1.0, np.shape(x)))
+        return x * (1.0 + per_env(self.fraction, rows) * (2.0 * self._rng.random(np.shape(x)) - 1.0))

@@ -108,8 +108,7 @@ class QubeEnv(gymnasium.Env):
         info = self._info()
         drawn = self.environment.randomization_sample
         if drawn is not None:
-            info["parameters"] = dict(drawn.parameters)
-            info["effects"] = {name: dict(settings) for name, settings in drawn.effects.items()}
+            info["parameters"], info["effects"] = drawn.parameters, drawn.effects
         return self._observation(), info
 
     def step(self, action):
