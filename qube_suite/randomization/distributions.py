@@ -115,12 +115,11 @@ class Distribution:
         return (lower * nominal, upper * nominal) if self.relative else (lower, upper)
 
     def sample(self, random: np.random.RandomState, nominal: float = 1.0) -> float | int:
-        """One draw from `random` (a numpy RandomState or Generator): the value itself, or
-        `nominal` times the draw if relative."""
+        """One draw from `random`: the value itself, or `nominal` times the draw if relative."""
         if self.kind == "normal":
             value = self.mean + self.std * random.standard_normal()
         else:
-            u = random.random()
+            u = random.random_sample()
             if self.integer:
                 return int(self.low + math.floor(u * (self.high - self.low + 1.0)))
             if self.kind == "uniform":

@@ -48,5 +48,5 @@ def sample(config: Randomization, random: np.random.RandomState) -> Sample:
     """
     parameters = sample_parameters(config, random)
     effects = sample_effects(config, random)
-    seed = int(random.random() * 2.0**32) if config.stochastic else None
+    seed = int(random.random_sample() * 2.0**32) if config.stochastic else None
     return Sample(parameters, effects, seed)
