@@ -240,7 +240,7 @@ class Physics(dm_mujoco.Physics):
         if self._step_duration_model is None:
             mujoco.mj_step(self._model_ptr, self._data_ptr, nstep)
         else:
-            self._step_for(self._step_duration_model(nstep * self._model_ptr.opt.timestep))
+            self._step_for(self._step_duration_model(nstep * self._options.timestep))
         self._measure()
 
     def time(self) -> float:
@@ -276,12 +276,13 @@ class Physics(dm_mujoco.Physics):
         self._measured = exact if self._sensor_reset is None else self._sensor_reset(exact)
 
     def _step_for(self, duration: float) -> None:
-        options = self._model_ptr.opt
-        nominal_timestep = options.timestep
+        nominal_timestep = self._options.timestep
         nstep = max(1, math.ceil(duration / MAX_TIMESTEP - 1e-9))
-        options.timestep = duration / nstep
-        mujoco.mj_step(self._model_ptr, self._data_ptr, nstep)
-        options.timestep = nominal_timestep
+        self._options.timestep = duration / nstep
+        try:
+            mujoco.mj_step(self._model_ptr, self._data_ptr, nstep)
+        finally:
+            self._options.timestep = nominal_timestep
 
     def _set_state(self, state: Sequence[float]) -> None:
         theta, alpha, dtheta, dalpha = (float(x) for x in state)
