@@ -28,10 +28,6 @@ KINDS: dict[str, tuple[str, str]] = {
 }
 """Distribution name -> its two numbers."""
 
-OPTIONS = ("clip", "relative")
-"""Keys every distribution may add."""
-
-
 def finite_number(value, where: str) -> float:
     """`value` as a float; a ValueError naming `where` unless it is a finite real number."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
