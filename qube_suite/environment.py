@@ -7,6 +7,8 @@ import math
 import dm_env
 from dm_control.rl import control
 
+from qube_suite import randomization as randomization_
+
 DEFAULT_CONTROL_FREQUENCY = 250.0
 """Control steps per second (Hz)."""
 
@@ -40,7 +42,9 @@ class Environment(control.Environment):
       raises ValueError and leaves the environment as it was;
     * the episode terminates (discount 0) when the task's safe set is left, and is
       truncated (discount 1) after `time_limit` seconds of control steps;
-    * the LED shows each step's reward (green high, red low).
+    * the LED shows each step's reward (green high, red low);
+    * with a randomization, every reset first draws the episode's parameters and
+      effects from the task's random state (`randomization_sample`).
 
     Args:
         physics: a Qube domain (`qube_suite.domains.interface.QubePhysics`) whose
@@ -48,14 +52,19 @@ class Environment(control.Environment):
         task: a `qube_suite.tasks.QubeTask`.
         control_frequency: control steps per second (Hz).
         time_limit: episode length (s).
+        randomization: None, or a preset name, config mapping, YAML file path or
+            `qube_suite.randomization.Randomization`.
     """
 
     def __init__(self, physics, task, control_frequency: float = DEFAULT_CONTROL_FREQUENCY,
-                 time_limit: float = DEFAULT_TIME_LIMIT):
+                 time_limit: float = DEFAULT_TIME_LIMIT, randomization=None):
         steps = episode_steps(time_limit, control_frequency)
         super().__init__(physics, task, control_timestep=1.0 / control_frequency, legacy_step=False)
         self._control_frequency = float(control_frequency)
         self._episode_steps = steps
+        self._randomizer = None if randomization is None else randomization_.Randomizer(
+            randomization_.load(randomization), physics, 1.0 / self._control_frequency)
+        self._randomization_sample = None
 
     @property
     def control_frequency(self) -> float:
@@ -72,6 +81,17 @@ class Environment(control.Environment):
         """Control steps taken in the current episode."""
         return self._step_count
 
+    @property
+    def randomization(self) -> randomization_.Randomization | None:
+        """The randomization drawn from at every reset, or None."""
+        return None if self._randomizer is None else self._randomizer.config
+
+    @property
+    def randomization_sample(self) -> randomization_.Sample | None:
+        """What the randomization drew for the current episode (parameters, effect settings),
+        or None without randomization."""
+        return self._randomization_sample
+
     def reset(self) -> dm_env.TimeStep:
         """Start a new episode and return its first `TimeStep`."""
         self.start_episode()
@@ -82,6 +102,8 @@ class Environment(control.Environment):
         Gymnasium view share."""
         self._reset_next_step = False
         self._step_count = 0
+        if self._randomizer is not None:
+            self._randomization_sample = self._randomizer.start_episode(self._task.random)
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics)
         self._physics.set_led(reward_colour(self._task.get_reward(self._physics)))

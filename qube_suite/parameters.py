@@ -24,6 +24,7 @@ arm. MuJoCo represents them natively (joint `frictionloss` and `stiffness`).
 from __future__ import annotations
 
 import dataclasses
+import math
 import types
 
 
@@ -82,6 +83,11 @@ def pendulum_inertia(pendulum_mass: float, pendulum_length: float) -> float:
     return pendulum_mass * pendulum_length**2 / 12.0
 
 
+def may_be_zero(name: str) -> bool:
+    """Whether parameter `name` may be 0 (damping and the accuracy options); none may be negative."""
+    return PARAMETERS[name].nominal == 0.0 or name.endswith("damping")
+
+
 def resolve(overrides: dict[str, float] | None = None) -> dict[str, float]:
     """Nominal parameters updated by `overrides`; a name that is not a parameter is a ValueError."""
     values = dict(NOMINAL)
@@ -89,11 +95,15 @@ def resolve(overrides: dict[str, float] | None = None) -> dict[str, float]:
         if name not in PARAMETERS:
             raise ValueError(f"unknown parameter {name!r}; valid names: {', '.join(PARAMETERS)}")
         value = float(value)
-        if not value == value or value in (float("inf"), float("-inf")):
-            raise ValueError(f"parameter {name!r} must be finite, got {value}")
-        minimum_is_zero = PARAMETERS[name].nominal == 0.0 or name.endswith("damping")
-        if value < 0.0 or (value == 0.0 and not minimum_is_zero):
-            raise ValueError(f"parameter {name!r} must be {'>= 0' if minimum_is_zero else '> 0'}, "
-                             f"got {value}")
+        if not 0.0 < value < math.inf:  # positive and finite is valid for every parameter
+            _check_nonpositive(name, value)
         values[name] = value
     return values
+
+
+def _check_nonpositive(name: str, value: float) -> None:
+    if math.isnan(value) or math.isinf(value):
+        raise ValueError(f"parameter {name!r} must be finite, got {value}")
+    minimum_is_zero = may_be_zero(name)
+    if value < 0.0 or (value == 0.0 and not minimum_is_zero):
+        raise ValueError(f"parameter {name!r} must be {'>= 0' if minimum_is_zero else '> 0'}, got {value}")

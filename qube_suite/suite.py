@@ -60,8 +60,9 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
             parameters by long name); for "qube_hardware", `board`, `plant`,
             `realtime`, `max_voltage`, `reset_voltage_limit`, `reset_timeout`,
             `identifier` (see `qube_suite.domains.qube_hardware.Physics`).
-        randomization: domain randomization; not available in this release, so
-            anything but None raises ValueError.
+        randomization: domain randomization drawn at every reset: a preset name
+            ("none", "mild", "moderate", "sim2real"), a config mapping, the path of
+            a YAML file, or a `qube_suite.randomization.Randomization`; None: off.
 
     Raises:
         ValueError: unknown names or invalid arguments; the message lists valid values.
@@ -72,13 +73,10 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
     if unknown:
         raise ValueError(f"unknown environment_kwargs {sorted(unknown)}; "
                          f"valid: {', '.join(ENVIRONMENT_KWARGS)}")
-    if randomization is not None:
-        raise ValueError("randomization is not available in this release of qube_suite; pass None")
-
     domain = importlib.import_module(_DOMAIN_MODULES[domain_name])
     frequency = environment_kwargs.get("control_frequency", DEFAULT_CONTROL_FREQUENCY)
     physics = domain.make_physics(control_frequency=frequency, **dict(domain_kwargs or {}))
-    return Environment(physics, task, **environment_kwargs)
+    return Environment(physics, task, randomization=randomization, **environment_kwargs)
 
 
 def make_task(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None = None) -> QubeTask:

@@ -128,7 +128,7 @@ def test_unknown_names_list_valid_ones(domain, task, message):
     ({"environment_kwargs": {"control_frequency": 1e5}}, "control_frequency"),
     ({"environment_kwargs": {"time_limit": -1.0}}, "time_limit"),
     ({"environment_kwargs": {"n_sub_steps": 3}}, "valid: control_frequency, time_limit"),
-    ({"randomization": "mild"}, "randomization"),
+    ({"randomization": "milder"}, "valid presets: none, mild, moderate, sim2real"),
 ])
 def test_invalid_arguments_are_clear_errors(kwargs, message):
     with pytest.raises(ValueError, match=message):

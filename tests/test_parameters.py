@@ -115,3 +115,67 @@ def test_constraint_stage_runs_only_with_friction(physics):
     physics.reset_to([0.0, 0.5, 0.0, 0.0])  # friction really acts: the pendulum comes to rest
     physics.step(3000)
     assert abs(physics.pendulum_velocity()) < 1e-3
+
+
+class CountingSensor:
+    """A sensor model with memory: counts steps since it was last reset."""
+
+    def __init__(self):
+        self.steps_since_reset = 0
+
+    def reset(self, exact):
+        self.steps_since_reset = 0
+        return exact
+
+    def __call__(self, exact):
+        self.steps_since_reset += 1
+        return exact
+
+
+def test_sensor_model_with_memory_restarts_when_the_state_is_set(physics):
+    sensor = CountingSensor()
+    physics.set_sensor_model(sensor)
+    physics.step(3)
+    physics.step()
+    assert sensor.steps_since_reset == 2  # one call per step, whatever nstep
+    physics.reset_to([0.0, 1.0, 0.0, 0.0])
+    assert sensor.steps_since_reset == 0
+    physics.step()
+    physics.forward()
+    assert sensor.steps_since_reset == 0
+
+
+def test_actuator_model_restarts_with_the_physics(physics):
+    calls = []
+
+    class Recorder:
+        def reset(self, volts):
+            calls.append(("reset", volts))
+
+        def __call__(self, volts):
+            calls.append(("call", volts))
+            return volts
+
+    physics.set_actuator_model(Recorder())
+    physics.set_voltage(1.5)
+    physics.reset()
+    assert calls == [("call", 1.5), ("reset", 0.0)]
+
+
+def test_step_duration_model_changes_how_long_a_step_lasts(physics):
+    durations = iter([0.0046, 0.0030])
+    physics.set_step_duration_model(lambda nominal: next(durations))
+    physics.reset_to([0.0, 0.5, 0.0, 0.0])
+    physics.step()
+    assert physics.time() == pytest.approx(0.0046)
+    assert physics.timestep() == qube.MAX_TIMESTEP  # restored after the step
+    physics.step()
+    assert physics.time() == pytest.approx(0.0076)
+
+    # The same as stepping a reference with timesteps dividing each duration (<= MAX_TIMESTEP).
+    reference = qube.make_physics()
+    reference.reset_to([0.0, 0.5, 0.0, 0.0])
+    for duration, nstep in [(0.0046, 2), (0.0030, 1)]:
+        reference.model.opt.timestep = duration / nstep
+        reference.step(nstep)
+    np.testing.assert_array_equal(physics.true_state(), reference.true_state())

@@ -6,7 +6,7 @@ import re
 import pytest
 from conftest import OFFSCREEN_GL
 
-from qube_suite import parameters
+from qube_suite import parameters, randomization
 
 README = (pathlib.Path(__file__).resolve().parent.parent / "README.md").read_text()
 PYTHON_BLOCKS = re.findall(r"```python\n(.*?)```", README, re.S)
@@ -42,3 +42,27 @@ def test_parameter_table_matches_the_package():
     assert set(documented) >= {"motor_resistance", "pendulum_length", "arm_damping", "gravity"}
     for name, value in documented.items():
         assert parameters.NOMINAL[name] == pytest.approx(value), name
+
+
+def preset_cell(name, value):
+    """A parameter's distribution or an effect's settings as the README's preset table shows them."""
+    if name in parameters.PARAMETERS:
+        return str(value) if value.relative else f"{value} {parameters.PARAMETERS[name].unit}"
+    fields = randomization.EFFECTS[name].fields
+    shown = {key: f"[{', '.join(f'{v:g}' for v in setting)}]" if isinstance(setting, tuple)
+             else str(setting) if isinstance(setting, randomization.Distribution) else f"{setting:g}"
+             for key, setting in value.items()}
+    return "; ".join(f"{key} {text} {fields[key].unit}" for key, text in shown.items())
+
+
+def test_preset_table_matches_the_presets():
+    presets = [name for name in randomization.PRESETS if name != "none"]
+    configs = [randomization.load(name) for name in presets]
+    assert randomization.load("none") == randomization.Randomization()
+    rows = ["| | " + " | ".join(f"`{name}`" for name in presets) + " |", "|---" * (len(presets) + 1) + "|"]
+    for name in [*parameters.PARAMETERS, *randomization.EFFECTS]:
+        entries = [{**config.parameters, **config.effects}.get(name) for config in configs]
+        if any(entry is not None for entry in entries):
+            cells = ["–" if entry is None else preset_cell(name, entry) for entry in entries]
+            rows.append(f"| `{name}` | " + " | ".join(cells) + " |")
+    assert "\n".join(rows) in README

@@ -24,8 +24,8 @@ from qube_suite.angles import wrap_angle
 MODEL_PATH = pathlib.Path(__file__).resolve().parent.parent / "assets" / "qube.xml"
 
 MAX_TIMESTEP = 0.004
-"""Largest physics timestep (s): RK4 at 4 ms keeps trajectories within 1e-5 rad of a
-64x finer run over 2 s (benchmarks/timestep_convergence.py)."""
+"""Largest physics timestep (s): RK4 at 4 ms keeps trajectories within 3.5e-4 rad of a
+64x finer run over 2 s of chaotic swinging (benchmarks/timestep_convergence.py)."""
 
 MIN_CONTROL_FREQUENCY = 10.0
 MAX_CONTROL_FREQUENCY = 2000.0
@@ -38,9 +38,14 @@ class Physics(dm_mujoco.Physics):
     measured once whenever the simulation moves (`step`, `reset_to`, `forward`)
     and the accessors return that measurement: in the nominal model it is the
     exact state with angles wrapped; a sensor model (`set_sensor_model`) can make
-    it imperfect, and an actuator model (`set_actuator_model`) can alter the
-    voltage the motor receives.
+    it imperfect, an actuator model (`set_actuator_model`) can alter the voltage
+    the motor receives, and a step-duration model (`set_step_duration_model`) can
+    perturb how long each `step` lasts.
     """
+
+    UNMODELLED_PARAMETERS = frozenset({"motor_inductance"})
+    """Parameters `set_parameters` records but the simulation does not use: the motor's
+    electrical time constant, Lm / Rm = 0.14 ms, is far below the 4 ms timestep."""
 
     _measurement_ready = False
 
@@ -55,18 +60,21 @@ class Physics(dm_mujoco.Physics):
         self._qpos = self._data_ptr.qpos
         self._qvel = self._data_ptr.qvel
         self._ctrl = self._data_ptr.ctrl
-        ids = ElementIds(model)
+        ids = self._ids = ElementIds(model)
         self._arm_qpos, self._pendulum_qpos = ids.arm_qpos, ids.pendulum_qpos
         self._arm_dof, self._pendulum_dof = ids.arm_dof, ids.pendulum_dof
         self._led_rgba = model.geom_rgba[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "led")]
         self._led = tuple(float(x) for x in self._led_rgba[:3])
+        self._options = model.opt
         if not hasattr(self, "_parameters"):
             self._parameters = dict(params.NOMINAL)
         self._sensor_model = None
+        self._sensor_reset = None
         self._actuator_model = None
+        self._step_duration_model = None
         self._voltage = float(self._ctrl[0])
         self._measurement_ready = True
-        self._measure()
+        self._measure_afresh()
 
     def copy(self, share_model: bool = False) -> Physics:
         new = super().copy(share_model=share_model)
@@ -88,7 +96,7 @@ class Physics(dm_mujoco.Physics):
         unchanged then.
         """
         state = self._exact_state()
-        self._parameters = write_parameters(self._model_ptr, self._data_ptr, overrides)
+        self._parameters = write_parameters(self._model_ptr, self._data_ptr, overrides, self._ids)
         self._set_state(state)
 
     # -- the domain interface -------------------------------------------------------
@@ -127,13 +135,31 @@ class Physics(dm_mujoco.Physics):
         self._ctrl[0] = volts if self._actuator_model is None else self._actuator_model(volts)
 
     def set_sensor_model(self, sensor_model) -> None:
-        """Measure through `sensor_model(exact_state) -> measured_state` (tuples of 4 floats); None: exact."""
+        """Measure through `sensor_model`; None: exactly.
+
+        `sensor_model(exact) -> measured` is called after every `step` with the exact
+        [theta, alpha, dtheta, dalpha] (angles wrapped) and returns the measured one
+        (4 floats). If it has a `reset(exact) -> measured` method, that is called
+        instead whenever the state is set directly (`reset_to`, `forward`,
+        `set_parameters`, and now), so that a model with memory starts afresh.
+        """
         self._sensor_model = sensor_model
-        self._measure()
+        self._sensor_reset = getattr(sensor_model, "reset", sensor_model)
+        self._measure_afresh()
 
     def set_actuator_model(self, actuator_model) -> None:
-        """Drive the motor with `actuator_model(volts) -> volts`; None: as commanded."""
+        """Drive the motor with `actuator_model(volts) -> volts`, called once per `set_voltage`;
+        None: as commanded. If it has a `reset(volts)` method, `reset` calls it with 0 V."""
         self._actuator_model = actuator_model
+
+    def set_step_duration_model(self, step_duration_model) -> None:
+        """Make each `step` last `step_duration_model(duration) -> duration` (s) instead of its
+        nominal duration (`nstep` timesteps); None: nominal.
+
+        The perturbed duration is covered in equal timesteps of at most MAX_TIMESTEP, so
+        the timestep still divides every step and the integration stays as accurate.
+        """
+        self._step_duration_model = step_duration_model
 
     def motor_current(self) -> float:
         """Motor current (A), (V - km dtheta) / Rm at the motor's terminals; inductance neglected."""
@@ -175,7 +201,10 @@ class Physics(dm_mujoco.Physics):
 
     def step(self, nstep: int = 1) -> None:
         """Advance `nstep` physics timesteps (one MuJoCo call), then measure."""
-        mujoco.mj_step(self._model_ptr, self._data_ptr, nstep)
+        if self._step_duration_model is None:
+            mujoco.mj_step(self._model_ptr, self._data_ptr, nstep)
+        else:
+            self._step_for(self._step_duration_model(nstep * self._options.timestep))
         self._measure()
 
     def time(self) -> float:
@@ -189,22 +218,23 @@ class Physics(dm_mujoco.Physics):
         """Recompute derived quantities after the state was changed directly, then measure."""
         super().forward()
         if self._measurement_ready:
-            self._measure()
+            self._measure_afresh()
 
     def reset(self, keyframe_id: int | None = None) -> None:
         """Reset time, state and control (dm_control's `Physics.reset`); the voltage is 0 V."""
-        self._voltage = 0.0
+        self._restart_actuation()
         super().reset(keyframe_id)
 
     @contextlib.contextmanager
     def reset_context(self):
         """dm_control's reset context without its extra passes: time, state and control are reset
-        (0 V), the caller sets the start (e.g. `reset_to`), then one `mj_forward` and a measurement."""
+        (0 V), the caller sets the start (e.g. `reset_to`), then one `mj_forward` and a fresh
+        measurement."""
         mujoco.mj_resetData(self._model_ptr, self._data_ptr)
-        self._voltage = 0.0
+        self._restart_actuation()
         yield
         mujoco.mj_forward(self._model_ptr, self._data_ptr)
-        self._measure()
+        self._measure_afresh()
 
     # -- helpers ------------------------------------------------------------------
 
@@ -213,9 +243,27 @@ class Physics(dm_mujoco.Physics):
         return (wrap_angle(qpos[self._arm_qpos]), wrap_angle(qpos[self._pendulum_qpos]),
                 qvel[self._arm_dof], qvel[self._pendulum_dof])
 
+    def _restart_actuation(self) -> None:
+        self._voltage = 0.0
+        if hasattr(self._actuator_model, "reset"):
+            self._actuator_model.reset(0.0)
+
     def _measure(self) -> None:
         exact = self._exact_state()
         self._measured = exact if self._sensor_model is None else self._sensor_model(exact)
+
+    def _measure_afresh(self) -> None:
+        exact = self._exact_state()
+        self._measured = exact if self._sensor_reset is None else self._sensor_reset(exact)
+
+    def _step_for(self, duration: float) -> None:
+        nominal_timestep = self._options.timestep
+        nstep = max(1, math.ceil(duration / MAX_TIMESTEP - 1e-9))
+        self._options.timestep = duration / nstep
+        try:
+            mujoco.mj_step(self._model_ptr, self._data_ptr, nstep)
+        finally:
+            self._options.timestep = nominal_timestep
 
     def _set_state(self, state: Sequence[float]) -> None:
         theta, alpha, dtheta, dalpha = (float(x) for x in state)
@@ -224,7 +272,7 @@ class Physics(dm_mujoco.Physics):
         self._qvel[self._arm_dof] = dtheta
         self._qvel[self._pendulum_dof] = dalpha
         mujoco.mj_forward(self._model_ptr, self._data_ptr)
-        self._measure()
+        self._measure_afresh()
 
 
 class ElementIds:
@@ -247,26 +295,27 @@ class ElementIds:
 
 
 def write_parameters(model: mujoco.MjModel, data: mujoco.MjData,
-                     overrides: Mapping[str, float] | None = None) -> dict[str, float]:
+                     overrides: Mapping[str, float] | None = None,
+                     ids: ElementIds | None = None) -> dict[str, float]:
     """Write the nominal parameters updated by `overrides` into `model` in place; return them all.
 
     Keeps derived quantities consistent (inertias, centres of mass, drawing) and
     recomputes MuJoCo's mass-dependent constants using `data` (any MjData of a model
-    of the same sizes) as scratch. Raises ValueError for an unknown name or an
-    impossible value; the model is unchanged then.
+    of the same sizes) as scratch. `ids`: the model's `ElementIds`, if known. Raises
+    ValueError for an unknown name or an impossible value; the model is unchanged then.
     """
     p = params.resolve(dict(overrides or {}))
-    m, ids = model, ElementIds(model)
+    m, ids = model, ids or ElementIds(model)
     arm, pendulum = ids.arm, ids.pendulum
 
     jr = params.arm_inertia(p["arm_mass"], p["arm_length"])
     m.body_mass[arm] = p["arm_mass"]
     m.body_inertia[arm, 0] = m.body_inertia[arm, 2] = jr
-    m.body_pos[pendulum] = (0.0, -p["arm_length"], 0.0)
+    m.body_pos[pendulum, 1] = -p["arm_length"]
 
     jp = params.pendulum_inertia(p["pendulum_mass"], p["pendulum_length"])
     m.body_mass[pendulum] = p["pendulum_mass"]
-    m.body_ipos[pendulum] = (0.0, 0.0, p["pendulum_length"] / 2.0)
+    m.body_ipos[pendulum, 2] = p["pendulum_length"] / 2.0
     m.body_inertia[pendulum] = (jp, jp, 0.5 * p["pendulum_mass"] * params.PENDULUM_ROD_RADIUS**2)
 
     m.dof_damping[ids.arm_dof] = p["arm_damping"]
@@ -284,14 +333,14 @@ def write_parameters(model: mujoco.MjModel, data: mujoco.MjData,
     m.actuator_gainprm[ids.motor, 0] = p["motor_torque_constant"] / p["motor_resistance"]
     m.actuator_biasprm[ids.motor, 2] = (
         -p["motor_torque_constant"] * p["motor_back_emf"] / p["motor_resistance"])
-    m.opt.gravity[:] = (0.0, 0.0, -p["gravity"])
+    m.opt.gravity[2] = -p["gravity"]
 
     # Drawing follows the lengths.
     half_arm = p["arm_length"] / 2.0
-    m.geom_pos[ids.arm_geom] = (0.0, -half_arm, 0.0)
+    m.geom_pos[ids.arm_geom, 1] = -half_arm
     m.geom_size[ids.arm_geom, 1] = half_arm
     m.geom_pos[ids.encoder_geom, 1] = -p["arm_length"] + 0.014
-    m.geom_pos[ids.pendulum_geom] = (0.0, 0.0, p["pendulum_length"] / 2.0)
+    m.geom_pos[ids.pendulum_geom, 2] = p["pendulum_length"] / 2.0
     m.geom_size[ids.pendulum_geom, 1] = p["pendulum_length"] / 2.0
 
     mujoco.mj_setConst(m, data)  # mass-dependent constants

@@ -58,7 +58,10 @@ class QubeEnv(gymnasium.Env):
     Stepping after either without `reset()` raises RuntimeError.
 
     ## Info
-    `time` (s), `voltage` (V, as applied after clipping), `target` (rad, follow tasks).
+    `time` (s), `voltage` (V, as commanded after clipping), `target` (rad, follow tasks).
+    With a randomization, `reset` adds what the episode drew: `parameters` (name ->
+    value of each randomized physical parameter) and `effects` (effect name ->
+    settings).
 
     ## Rendering
     `render_mode="rgb_array"` returns frames from `camera` ("front_oblique",
@@ -109,7 +112,11 @@ class QubeEnv(gymnasium.Env):
         self._episode_over = False
         if self.render_mode == "human":
             self.render()
-        return self._observation(), self._info()
+        info = self._info()
+        drawn = self.environment.randomization_sample
+        if drawn is not None:
+            info["parameters"], info["effects"] = drawn.parameters, drawn.effects
+        return self._observation(), info
 
     def step(self, action):
         if self._episode_over:
@@ -152,7 +159,7 @@ class QubeEnv(gymnasium.Env):
     def _observation(self) -> np.ndarray:
         return np.array(self.environment.task.observation_values(self.environment.physics), dtype=np.float32)
 
-    def _info(self) -> dict[str, float]:
+    def _info(self) -> dict[str, Any]:
         physics = self.environment.physics
         info = {"time": physics.time(), "voltage": physics.voltage()}
         if self._follows_target:

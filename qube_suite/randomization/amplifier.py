@@ -1,0 +1,69 @@
+"""What the amplifier does to the commanded voltage: offset, dead-zone, saturation.
+
+Applied in that order, after any action delay: the motor receives
+clip(dead_zone(v + offset), -limit, limit).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from qube_suite.randomization.base import Effect, Field, per_env
+
+
+class VoltageOffset(Effect):
+    """A constant `voltage` (V) added to every command."""
+
+    name = "voltage_offset"
+    signal = "voltage"
+    fields = {"voltage": Field("V", "offset added to the command")}
+
+    def __init__(self, voltage: float | np.ndarray):
+        self.voltage = np.asarray(voltage, dtype=np.float64)
+        self._voltage = self.voltage.tolist()
+
+    def output_one(self, x: float) -> float:
+        return x + self._voltage
+
+    def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+        return x + per_env(self.voltage, rows)
+
+
+class DeadZone(Effect):
+    """Commands within +-`voltage` (V) give 0 V; larger ones are reduced by it:
+    sign(v) max(|v| - voltage, 0), continuous like a motor's static friction."""
+
+    name = "dead_zone"
+    signal = "voltage"
+    fields = {"voltage": Field("V", "half-width of the dead band", minimum=0.0)}
+
+    def __init__(self, voltage: float | np.ndarray):
+        self.voltage = np.asarray(voltage, dtype=np.float64)
+        self._voltage = self.voltage.tolist()
+
+    def output_one(self, x: float) -> float:
+        return math.copysign(max(abs(x) - self._voltage, 0.0), x)
+
+    def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+        return np.copysign(np.maximum(np.abs(x) - per_env(self.voltage, rows), 0.0), x)
+
+
+class Saturation(Effect):
+    """The amplifier's output limited to +-`voltage` (V); acts when below the task's voltage limit."""
+
+    name = "saturation"
+    signal = "voltage"
+    fields = {"voltage": Field("V", "largest output", minimum=0.0, exclusive_minimum=True)}
+
+    def __init__(self, voltage: float | np.ndarray):
+        self.voltage = np.asarray(voltage, dtype=np.float64)
+        self._voltage = self.voltage.tolist()
+
+    def output_one(self, x: float) -> float:
+        return min(max(x, -self._voltage), self._voltage)
+
+    def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+        limit = per_env(self.voltage, rows)
+        return np.clip(x, -limit, limit)

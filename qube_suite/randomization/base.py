@@ -1,0 +1,155 @@
+"""The effect interface: a sensor or actuator imperfection that any Qube domain can apply, to one or n Qubes.
+
+An effect transforms one signal once per control step. For one Qube, on Python
+floats (the fast path of a single environment):
+
+    y = effect.reset_one(x)    # start afresh from x (the initial state, or 0 V); the output for x
+    y = effect.step_one(x)     # the output one control step later
+
+where a state is a sequence of 4 floats [theta, alpha, dtheta, dalpha] (rad,
+rad/s; angles wrapped to (-pi, pi]) and a motor voltage (V) or a step duration
+(s) is one float. For n Qubes at once, on float64 arrays of shape (n, 4) or (n,):
+
+    y = effect.reset(x, rows=None)
+    y = effect(x)
+
+Settings are numbers, or (for n Qubes) arrays with one entry per environment
+along their first axis; memory (delay lines, filter states) then lives in arrays
+shaped by the signal given to `reset`. `effect.reset(x, rows)` restarts only the
+environments `rows` (integer indices) from their signals `x` (first axis
+len(rows)) and returns their outputs; the others keep their memory (a caller
+that redraws per-environment settings writes them into the setting arrays
+first). Both paths give identical numbers; effects never modify their input.
+`Chain` and `BatchChain` apply several effects in order.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable, Mapping
+from typing import ClassVar
+
+import numpy as np
+
+
+@dataclasses.dataclass(frozen=True)
+class Field:
+    """One setting of an effect as a config gives it: unit, default and allowed values.
+
+    `default` None means required, unless `optional` (the effect's `complete`
+    decides then). `size` > 0: a list of that many fixed numbers; otherwise one
+    number or, per episode, a distribution (integers: a uniform integer range).
+    """
+
+    unit: str
+    description: str
+    default: float | None = None
+    optional: bool = False
+    minimum: float = -math.inf
+    maximum: float = math.inf
+    exclusive_minimum: bool = False
+    integer: bool = False
+    size: int = 0
+
+    def allows(self, lower: float, upper: float) -> bool:
+        """Whether every value in [lower, upper] is allowed."""
+        above = lower > self.minimum if self.exclusive_minimum else lower >= self.minimum
+        return above and upper <= self.maximum
+
+    def describe_range(self) -> str:
+        """The allowed values in words, e.g. `> 0` or `in [0, 0.5]`."""
+        if self.maximum < math.inf:
+            return f"in [{self.minimum:g}, {self.maximum:g}]"
+        return f"{'>' if self.exclusive_minimum else '>='} {self.minimum:g}"
+
+
+class Effect:
+    """Base of the effects (see the module docstring for the interface).
+
+    Subclasses set `name` (their key in a config's `effects`), `signal` (what they
+    transform: "state", "voltage" or "duration"), `fields` and `stochastic`
+    (whether they draw from a generator), and implement `output` and `output_one`
+    if they have no memory, or the reset and step methods of both paths if they do.
+    """
+
+    name: ClassVar[str]
+    signal: ClassVar[str]
+    fields: ClassVar[dict[str, Field]]
+    stochastic: ClassVar[bool] = False
+
+    @classmethod
+    def complete(cls, settings: dict) -> dict:
+        """Settings with what depends on several fields resolved; ValueError if inconsistent."""
+        return settings
+
+    @classmethod
+    def from_settings(cls, settings: Mapping, control_period: float, rng) -> Effect:
+        """The effect for one episode's `settings` at `control_period` (s); stochastic effects
+        draw from `rng` (a numpy Generator or RandomState)."""
+        return cls(**settings)
+
+    def reset_one(self, x):
+        return self.output_one(x)
+
+    def step_one(self, x):
+        return self.output_one(x)
+
+    def output_one(self, x):
+        """Output for one Qube's `x` (Python floats) of a memoryless effect."""
+        raise NotImplementedError
+
+    def reset(self, x: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        return self.output(x, rows)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return self.output(x, None)
+
+    def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+        """Output for the arrays `x` of a memoryless effect; `rows` selects per-environment settings."""
+        raise NotImplementedError
+
+
+def per_env(setting: np.ndarray, rows: np.ndarray | None, shared_ndim: int = 0) -> np.ndarray:
+    """`setting`, or its entries for `rows` when it holds one per environment (ndim > `shared_ndim`)."""
+    return setting if rows is None or setting.ndim == shared_ndim else setting[rows]
+
+
+class Chain:
+    """Effects applied in order to one Qube's signal: a domain's sensor or actuator model.
+
+    `reset(x)` when the state is set directly or the episode starts, a call per
+    control step; Python floats in and out (4 for a state, 1 for a voltage).
+    """
+
+    def __init__(self, effects: Iterable[Effect]):
+        self.effects = tuple(effects)
+
+    def reset(self, x):
+        for effect in self.effects:
+            x = effect.reset_one(x)
+        return x
+
+    def __call__(self, x):
+        for effect in self.effects:
+            x = effect.step_one(x)
+        return x
+
+
+class BatchChain:
+    """Effects applied in order to the signals of n Qubes (float64 arrays), itself an effect."""
+
+    def __init__(self, effects: Iterable[Effect]):
+        self.effects = tuple(effects)
+
+    def reset(self, x, rows: np.ndarray | None = None) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        for effect in self.effects:
+            x = effect.reset(x, rows)
+        return x
+
+    def __call__(self, x) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        for effect in self.effects:
+            x = effect(x)
+        return x

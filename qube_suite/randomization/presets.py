@@ -1,0 +1,86 @@
+"""The named randomization presets, as plain data (copy one to start your own config).
+
+- `none`: the nominal model exactly; nothing is drawn.
+- `mild`: manufacturing tolerances of the published parameters; no effects.
+- `moderate`: wider parameter ranges, some friction and cable spring, and sensor and
+  actuator effects, for policies meant to be robust in general.
+- `sim2real`: covers what a real Qube, and the hardware substitute's plant, add to
+  the nominal model: Coulomb friction on both joints and the encoder cable's
+  spring (ranges from 0 to twice the plant's estimates of 1e-3 N m, 5e-5 N m and
+  1e-3 N m/rad), 2048-count encoders, velocities from Quanser's 50 rad/s filter,
+  and up to one control step of actuation lag (board latency; the motor
+  inductance's electrical time constant, Lm / Rm = 0.14 ms, is far shorter). The
+  amplifier's limits are left out: within the tasks' voltage limits (3 V by
+  default, at most 10 V) they act rarely if ever (+-15 V range, 1.8 A current
+  limit against 3 V / 8.4 ohm = 0.36 A at stall).
+
+Friction and spring torques compare with the motor's kt / Rm = 0.005 N m per volt:
+1e-3 N m is the torque of 0.2 V.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+_TOLERANCE = {"distribution": "uniform", "low": 0.95, "high": 1.05}
+
+
+def _scale(low: float, high: float) -> dict[str, Any]:
+    return {"distribution": "uniform", "low": low, "high": high}
+
+
+def _log_scale(low: float, high: float) -> dict[str, Any]:
+    return {"distribution": "loguniform", "low": low, "high": high}
+
+
+def _absolute(low: float, high: float) -> dict[str, Any]:
+    return {"distribution": "uniform", "low": low, "high": high, "relative": False}
+
+
+PRESETS: dict[str, dict[str, Any]] = {
+    "none": {},
+    "mild": {
+        "parameters": {
+            "pendulum_mass": _TOLERANCE, "pendulum_length": _TOLERANCE,
+            "arm_mass": _TOLERANCE, "arm_length": _TOLERANCE,
+            "motor_resistance": _TOLERANCE, "motor_torque_constant": _TOLERANCE,
+            "motor_back_emf": _TOLERANCE, "rotor_inertia": _scale(0.9, 1.1),
+            "arm_damping": _log_scale(0.5, 2.0), "pendulum_damping": _log_scale(0.5, 2.0),
+        },
+    },
+    "moderate": {
+        "parameters": {
+            "pendulum_mass": _scale(0.9, 1.1), "pendulum_length": _scale(0.9, 1.1),
+            "arm_mass": _scale(0.9, 1.1), "arm_length": _scale(0.9, 1.1),
+            "motor_resistance": _scale(0.85, 1.15), "motor_torque_constant": _scale(0.85, 1.15),
+            "motor_back_emf": _scale(0.85, 1.15), "rotor_inertia": _scale(0.8, 1.2),
+            "arm_damping": _log_scale(0.2, 5.0), "pendulum_damping": _log_scale(0.2, 5.0),
+            "arm_friction": _absolute(0.0, 5e-4), "pendulum_friction": _absolute(0.0, 2e-5),
+            "cable_stiffness": _absolute(0.0, 5e-4),
+        },
+        "effects": {
+            "quantization": {"counts_per_revolution": 2048},
+            "observation_noise": {"std": [0.002, 0.002, 0.05, 0.05]},
+            "action_delay": {"steps": {"distribution": "uniform", "low": 0, "high": 1}},
+            "voltage_offset": {"voltage": {"distribution": "uniform", "low": -0.05, "high": 0.05}},
+            "control_jitter": {"fraction": 0.05},
+        },
+    },
+    "sim2real": {
+        "parameters": {
+            "pendulum_mass": _TOLERANCE, "pendulum_length": _TOLERANCE,
+            "arm_mass": _TOLERANCE, "arm_length": _TOLERANCE,
+            "motor_resistance": _scale(0.85, 1.15), "motor_torque_constant": _scale(0.9, 1.1),
+            "motor_back_emf": _scale(0.9, 1.1), "rotor_inertia": _scale(0.8, 1.2),
+            "arm_damping": _log_scale(0.3, 3.0), "pendulum_damping": _log_scale(0.3, 3.0),
+            "arm_friction": _absolute(0.0, 2e-3), "pendulum_friction": _absolute(0.0, 1e-4),
+            "cable_stiffness": _absolute(0.0, 2e-3),
+        },
+        "effects": {
+            "quantization": {"counts_per_revolution": 2048},
+            "velocity_filter": {"cutoff": 50.0},
+            "action_delay": {"steps": {"distribution": "uniform", "low": 0, "high": 1}},
+        },
+    },
+}
+"""Preset name -> config data (see `qube_suite.randomization.config`)."""

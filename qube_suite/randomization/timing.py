@@ -1,0 +1,36 @@
+"""Control-period jitter: each control step lasts a randomly perturbed time."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from qube_suite.randomization.base import Effect, Field, per_env
+
+
+class ControlJitter(Effect):
+    """Each control step lasts T (1 + u), u ~ U(-fraction, fraction), instead of the
+    nominal period T; the voltage is held throughout. The signal is the step's
+    nominal duration (s). At most 0.5, so a step lasts between T/2 and 3T/2."""
+
+    name = "control_jitter"
+    signal = "duration"
+    stochastic = True
+    fields = {"fraction": Field("of the period", "largest relative change of a step's duration",
+                                minimum=0.0, maximum=0.5)}
+
+    @classmethod
+    def from_settings(cls, settings: Mapping, control_period: float, rng) -> ControlJitter:
+        return cls(settings["fraction"], rng)
+
+    def __init__(self, fraction: float | np.ndarray, rng):
+        self.fraction = np.asarray(fraction, dtype=np.float64)
+        self._rng = rng
+        self._fraction = self.fraction.tolist()
+
+    def output_one(self, x: float) -> float:
+        return x * (1.0 + self._fraction * (2.0 * self._rng.random() - 1.0))
+
+    def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+        return x * (1.0 + per_env(self.fraction, rows) * (2.0 * self._rng.random(np.shape(x)) - 1.0))
