@@ -8,11 +8,13 @@
 from __future__ import annotations
 
 from qube_suite.baselines.base import Controller, split_observation
+from qube_suite.baselines.dampen import Dampen
 from qube_suite.baselines.lqr import BalanceLQR, lqr_gain
 from qube_suite.baselines.mpc import SamplingMPC
 from qube_suite.baselines.swingup import SwingUp
 
-CONTROLLERS: dict[str, type[Controller]] = {cls.name: cls for cls in (BalanceLQR, SwingUp, SamplingMPC)}
+CONTROLLERS: dict[str, type[Controller]] = {
+    cls.name: cls for cls in (BalanceLQR, SwingUp, Dampen, SamplingMPC)}
 """Controller name -> class."""
 
 
@@ -23,5 +25,5 @@ def make(name: str, **kwargs) -> Controller:
     return CONTROLLERS[name](**kwargs)
 
 
-__all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "SamplingMPC", "SwingUp", "lqr_gain", "make",
+__all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "Dampen", "SamplingMPC", "SwingUp", "lqr_gain", "make",
            "split_observation"]

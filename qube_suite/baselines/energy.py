@@ -8,14 +8,21 @@ by itself (with p = 0), psi the swing centre, psi' = p / M11. Then
 
     dE/dt = tau (psi' + g'(alpha) alpha'),   g'(alpha) = mp Lr l cos(alpha) / M11.
 
-The law has two parts, added as torques:
+The law adds two torques:
 
-* pump: tau_p = T e tanh(alpha' cos(alpha) / w), e = clip((E_set - E) / (b 2 mp g l), -1, 1).
-  Its work on the g' alpha' term moves E towards E_set on every swing, however
-  strongly the pendulum's reaction torque pushes the arm around; its work on psi'
-  averages out. T is capped so that this square wave alone would swing psi by
-  about +-`PUMP_EXCURSION` at the pendulum's natural frequency. The pump fades as
-  psi approaches `ARM_LIMIT - max g` while it pushes the arm outwards.
+* pump, with e = (E_set - E) / (b 2 mp g l) and the torque T:
+  - adding energy, 0 < e < 1: T e tanh(alpha' cos(alpha) / w). Its work on the
+    g' alpha' term raises E on every swing however hard the pendulum's reaction
+    pushes the arm about; its work on psi' averages out over a swing. For e >= 1
+    the tanh becomes a sign (bang-bang), which also starts a pendulum at rest.
+  - draining, e < 0: T max(e, -1) tanh(theta' / v), a damper on the arm whose
+    work tau theta' is never positive. Its damping T / v = B w0 is the arm's
+    impedance at the pendulum's natural frequency w0, which takes energy out of
+    the swing fastest. (Draining by the alpha' cos(alpha) phase instead locks
+    into a swing whose work on psi' cancels the drain.)
+  T is capped so that a square wave of it alone would swing psi by about
+  +-`PUMP_EXCURSION` at w0. The pump fades as psi approaches `ARM_LIMIT - max g`
+  while it pushes the arm outwards.
 * centring: tau_c = -B (wc^2 (psi - psi_set) + 2 zeta wc psi'): a damped spring
   on the swing centre only, which leaves the pendulum-driven motion g(alpha) free
   instead of fighting it (a spring on theta itself would take the pendulum's
@@ -62,6 +69,8 @@ class EnergyShaping:
                                PUMP_EXCURSION * model.base_inertia * natural_frequency_squared
                                / square_wave_gain)
         self.centre_limit = ARM_LIMIT - model.swing_offset(math.pi / 2)
+        # Drain damping B w0, the arm's impedance at the pendulum's frequency, saturating at T.
+        self.drain_speed = self.pump_torque / (model.base_inertia * math.sqrt(natural_frequency_squared))
         self.stiffness = model.base_inertia * CENTRING_FREQUENCY**2
         self.damping = 2.0 * CENTRING_DAMPING * model.base_inertia * CENTRING_FREQUENCY
 
@@ -72,10 +81,12 @@ class EnergyShaping:
         model = self.model
         error = (energy_set - model.energy(alpha, dtheta, dalpha)) / (ENERGY_BAND * model.swing_up_energy)
         phase = dalpha * math.cos(alpha)
-        if abs(error) < 1.0:
+        if error < 0.0:  # drain: a damper on the arm, whose work tau theta' is never positive
+            pump = self.pump_torque * max(error, -1.0) * math.tanh(dtheta / self.drain_speed)
+        elif error < 1.0:
             pump = self.pump_torque * error * math.tanh(phase / PHASE_SPEED)
-        else:  # far from the set energy: bang-bang, which also starts a pendulum at rest
-            pump = self.pump_torque * math.copysign(1.0, error) * math.copysign(1.0, phase)
+        else:  # far below the set energy: bang-bang, which also starts a pendulum at rest
+            pump = self.pump_torque * math.copysign(1.0, phase)
         centre = model.swing_centre(theta, alpha) - centre_set
         if pump * centre > 0.0:
             pump *= max(0.0, 1.0 - abs(centre) / self.centre_limit)
