@@ -11,10 +11,11 @@ from qube_suite.baselines.base import Controller, split_observation
 from qube_suite.baselines.dampen import Dampen
 from qube_suite.baselines.lqr import BalanceLQR, lqr_gain
 from qube_suite.baselines.mpc import SamplingMPC
+from qube_suite.baselines.rotor import Rotor
 from qube_suite.baselines.swingup import SwingUp
 
 CONTROLLERS: dict[str, type[Controller]] = {
-    cls.name: cls for cls in (BalanceLQR, SwingUp, Dampen, SamplingMPC)}
+    cls.name: cls for cls in (BalanceLQR, SwingUp, Dampen, Rotor, SamplingMPC)}
 """Controller name -> class."""
 
 
@@ -25,5 +26,5 @@ def make(name: str, **kwargs) -> Controller:
     return CONTROLLERS[name](**kwargs)
 
 
-__all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "Dampen", "SamplingMPC", "SwingUp", "lqr_gain", "make",
-           "split_observation"]
+__all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "Dampen", "Rotor", "SamplingMPC", "SwingUp", "lqr_gain",
+           "make", "split_observation"]
