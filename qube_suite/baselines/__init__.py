@@ -9,13 +9,14 @@ from __future__ import annotations
 
 from qube_suite.baselines.base import Controller, split_observation
 from qube_suite.baselines.dampen import Dampen
+from qube_suite.baselines.follow import Follow
 from qube_suite.baselines.lqr import BalanceLQR, lqr_gain
 from qube_suite.baselines.mpc import SamplingMPC
 from qube_suite.baselines.rotor import Rotor
 from qube_suite.baselines.swingup import SwingUp
 
 CONTROLLERS: dict[str, type[Controller]] = {
-    cls.name: cls for cls in (BalanceLQR, SwingUp, Dampen, Rotor, SamplingMPC)}
+    cls.name: cls for cls in (BalanceLQR, SwingUp, Dampen, Follow, Rotor, SamplingMPC)}
 """Controller name -> class."""
 
 
@@ -26,5 +27,5 @@ def make(name: str, **kwargs) -> Controller:
     return CONTROLLERS[name](**kwargs)
 
 
-__all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "Dampen", "Rotor", "SamplingMPC", "SwingUp", "lqr_gain",
-           "make", "split_observation"]
+__all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "Dampen", "Follow", "Rotor", "SamplingMPC", "SwingUp",
+           "lqr_gain", "make", "split_observation"]
