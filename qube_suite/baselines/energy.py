@@ -17,16 +17,17 @@ The law adds two torques:
     the tanh becomes a sign (bang-bang), which also starts a pendulum at rest.
   - draining, e < 0: T max(e, -1) tanh(theta' / v), a damper on the arm whose
     work tau theta' is never positive. Its damping T / v = B w0 is the arm's
-    impedance at the pendulum's natural frequency w0, which takes energy out of
-    the swing fastest. (Draining by the alpha' cos(alpha) phase instead locks
-    into a swing whose work on psi' cancels the drain.)
+    impedance at the pendulum's natural frequency w0, a matched load: in
+    simulation dampers several times stiffer or softer drain more slowly.
+    (Draining with the alpha' cos(alpha) phase instead locks into a swing whose
+    work on psi' cancels the drain.)
   T is capped so that a square wave of it alone would swing psi by about
   +-`PUMP_EXCURSION` at w0. The pump fades as psi approaches `ARM_LIMIT - max g`
   while it pushes the arm outwards.
-* centring: tau_c = -B (wc^2 (psi - psi_set) + 2 zeta wc psi'): a damped spring
-  on the swing centre only, which leaves the pendulum-driven motion g(alpha) free
-  instead of fighting it (a spring on theta itself would take the pendulum's
-  energy away).
+* centring: tau_c = -B (wc^2 psi + 2 zeta wc psi'): a damped spring on the
+  swing centre only, which leaves the pendulum-driven motion g(alpha) free
+  instead of fighting it (a spring on theta itself takes the pendulum's energy
+  away).
 
 Centring on psi rather than theta, and pumping total rather than pendulum energy,
 is what lets a 3 V motor, whose stall torque is no larger than the pendulum's
@@ -74,9 +75,9 @@ class EnergyShaping:
         self.stiffness = model.base_inertia * CENTRING_FREQUENCY**2
         self.damping = 2.0 * CENTRING_DAMPING * model.base_inertia * CENTRING_FREQUENCY
 
-    def voltage(self, state, energy_set: float, centre_set: float = 0.0) -> float:
+    def voltage(self, state, energy_set: float) -> float:
         """Voltage (V, clipped) for `state` [theta, alpha, dtheta, dalpha] towards total energy
-        `energy_set` (J) and swing centre `centre_set` (rad)."""
+        `energy_set` (J), swing centre 0."""
         theta, alpha, dtheta, dalpha = state
         model = self.model
         error = (energy_set - model.energy(alpha, dtheta, dalpha)) / (ENERGY_BAND * model.swing_up_energy)
@@ -87,7 +88,7 @@ class EnergyShaping:
             pump = self.pump_torque * error * math.tanh(phase / PHASE_SPEED)
         else:  # far below the set energy: bang-bang, which also starts a pendulum at rest
             pump = self.pump_torque * math.copysign(1.0, phase)
-        centre = model.swing_centre(theta, alpha) - centre_set
+        centre = model.swing_centre(theta, alpha)
         if pump * centre > 0.0:
             pump *= max(0.0, 1.0 - abs(centre) / self.centre_limit)
         centre_speed = model.angular_momentum(alpha, dtheta, dalpha) / model.arm_inertia(alpha)
