@@ -57,7 +57,10 @@ class Follow(Controller):
 
     def __call__(self, observation: Any) -> float:
         state, target = split_observation(observation)
-        target = min(max(target, -REFERENCE_LIMIT), REFERENCE_LIMIT)
-        theta = state[0]
-        reference = theta + min(max(target - theta, -REFERENCE_STEP), REFERENCE_STEP)
-        return self.swingup.voltage_for(state, reference)
+        return self.swingup.voltage_for(state, arm_set_point(state[0], target))
+
+
+def arm_set_point(theta: float, target: float) -> float:
+    """The balance LQR's arm set-point (rad) for the arm at `theta` and the target `target` (rad)."""
+    target = min(max(target, -REFERENCE_LIMIT), REFERENCE_LIMIT)
+    return theta + min(max(target - theta, -REFERENCE_STEP), REFERENCE_STEP)

@@ -30,6 +30,7 @@ import numpy as np
 from mujoco import rollout
 
 from qube_suite.baselines.base import Controller, split_observation
+from qube_suite.baselines.follow import arm_set_point
 from qube_suite.baselines.lqr import BalanceLQR
 from qube_suite.baselines.swingup import CATCH_VOLTAGE, RELEASE_VOLTAGE
 from qube_suite.domains import qube
@@ -56,7 +57,7 @@ class SamplingMPC(Controller):
         + 100 if |theta| > 80 degrees
 
     The balance LQR (`BalanceLQR`) takes over inside the same cost-to-go
-    ellipsoid as in `SwingUp`.
+    ellipsoid as in `SwingUp`, with the arm set-point of `Follow`.
 
     Args:
         control_frequency: control steps per second (Hz).
@@ -113,11 +114,12 @@ class SamplingMPC(Controller):
 
     def __call__(self, observation: Any) -> float:
         state, target = split_observation(observation)
+        set_point = arm_set_point(state[0], target)
         level = self._release_level if self._balancing else self._catch_level
-        self._balancing = self._balance.cost_to_go(state, target) < level
+        self._balancing = self._balance.cost_to_go(state, set_point) < level
         if self._balancing:
             self._phase, self._next_plan = 0, None
-            return self._balance.voltage_for(state, target)
+            return self._balance.voltage_for(state, set_point)
         if self._phase == 0:
             self._start_knot(state, target)
         if self._phase < len(self._slices):
