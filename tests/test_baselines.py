@@ -345,6 +345,21 @@ def test_classical_controllers_are_cheap(name):
     assert np.median(times) < 1e-3
 
 
+def test_mpc_spreads_its_planning_over_the_control_steps():
+    """Every call while swinging up does a similar, bounded share of the planning (thread CPU time)."""
+    controller = baselines.make("mpc")
+    env = suite.load("qube", "swingup", task_kwargs={"random": 0})
+    timestep = env.reset()
+    times = []
+    for _ in range(250):                                    # the first second: swinging, planning
+        start = time.thread_time()
+        volts = controller(timestep.observation)
+        times.append(time.thread_time() - start)
+        timestep = env.step(volts)
+    controller.close()
+    assert np.median(times) < 2e-3 and np.percentile(times, 90) < 2 * np.median(times) + 1e-3
+
+
 @pytest.mark.parametrize("observation, state, target", [
     ({"state": np.array([1.0, 2.0, 3.0, 4.0])}, [1, 2, 3, 4], 0.0),
     ({"state": np.array([1.0, 2.0, 3.0, 4.0]), "target": np.array([0.5])}, [1, 2, 3, 4], 0.5),
