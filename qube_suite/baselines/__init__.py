@@ -1,7 +1,8 @@
-"""Controllers derived from the Qube model: LQR balance and sampling MPC swing-up.
+"""Controllers derived from the Qube model, by name: balance (LQR), swingup, dampen, follow,
+rotor (energy shaping with LQRs) and mpc (sampling MPC).
 
     from qube_suite import baselines
-    controller = baselines.make("mpc", control_frequency=250.0, voltage_limit=3.0)
+    controller = baselines.make("swingup", control_frequency=250.0, voltage_limit=3.0)
     voltage = controller(observation)
 """
 
