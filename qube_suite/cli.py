@@ -8,7 +8,7 @@ import sys
 import time
 
 EPILOG = """examples:
-  qube-suite demo                 swing the simulated Qube up with the MPC controller
+  qube-suite demo                 swing the simulated Qube up with the energy-shaping controller
   qube-suite demo --seed 3        another start state
   qube-suite list                 domains, tasks, Gymnasium ids and controllers
   qube-suite eval --task balance --controller balance --episodes 20 --json
@@ -21,9 +21,10 @@ def _demo(args: argparse.Namespace) -> int:
     from qube_suite import baselines, suite
 
     environment = suite.load("qube", "swingup", task_kwargs={"random": args.seed})
-    controller = baselines.make("mpc", voltage_limit=environment.task.voltage_limit, seed=args.seed)
+    controller = baselines.make("swingup", control_frequency=environment.control_frequency,
+                                voltage_limit=environment.task.voltage_limit)
     print(f"Swing-up on the simulated Qube-Servo 2 at {environment.control_frequency:g} Hz, "
-          f"{environment.task.voltage_limit:g} V limit, MPC controller (seed {args.seed})")
+          f"{environment.task.voltage_limit:g} V limit, energy-shaping controller (seed {args.seed})")
     start = time.perf_counter()
     timestep = environment.reset()
     episode_return, upright_at, largest_arm_angle = 0.0, None, 0.0
@@ -91,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = parser.add_subparsers(dest="command", required=True, metavar="command")
     demo = commands.add_parser("demo", help="swing up the simulated Qube and print the return")
-    demo.add_argument("--seed", type=int, default=0, help="seed of the start state and the controller")
+    demo.add_argument("--seed", type=int, default=0, help="seed of the start state")
     demo.set_defaults(run=_demo)
     listing = commands.add_parser("list", help="list domains, tasks, Gymnasium ids and controllers")
     listing.set_defaults(run=_list)

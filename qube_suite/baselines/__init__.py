@@ -1,17 +1,23 @@
-"""Controllers derived from the Qube model: LQR balance and sampling MPC swing-up.
+"""Controllers derived from the Qube model, by name: balance (LQR), swingup, dampen, follow,
+rotor (energy shaping with LQRs) and mpc (sampling MPC).
 
     from qube_suite import baselines
-    controller = baselines.make("mpc", control_frequency=250.0, voltage_limit=3.0)
+    controller = baselines.make("swingup", control_frequency=250.0, voltage_limit=3.0)
     voltage = controller(observation)
 """
 
 from __future__ import annotations
 
 from qube_suite.baselines.base import Controller, split_observation
+from qube_suite.baselines.dampen import Dampen
+from qube_suite.baselines.follow import Follow
 from qube_suite.baselines.lqr import BalanceLQR, lqr_gain
 from qube_suite.baselines.mpc import SamplingMPC
+from qube_suite.baselines.rotor import Rotor
+from qube_suite.baselines.swingup import SwingUp
 
-CONTROLLERS: dict[str, type[Controller]] = {cls.name: cls for cls in (BalanceLQR, SamplingMPC)}
+CONTROLLERS: dict[str, type[Controller]] = {
+    cls.name: cls for cls in (BalanceLQR, SwingUp, Dampen, Follow, Rotor, SamplingMPC)}
 """Controller name -> class."""
 
 
@@ -22,4 +28,5 @@ def make(name: str, **kwargs) -> Controller:
     return CONTROLLERS[name](**kwargs)
 
 
-__all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "SamplingMPC", "lqr_gain", "make", "split_observation"]
+__all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "Dampen", "Follow", "Rotor", "SamplingMPC", "SwingUp",
+           "lqr_gain", "make", "split_observation"]

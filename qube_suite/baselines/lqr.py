@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -19,19 +19,28 @@ VOLTAGE_WEIGHT = 1.0
 """Default LQR weight on the voltage (V)."""
 
 
-def lqr_gain(control_frequency: float, parameters: Mapping[str, float] | None = None,
-             state_weights=STATE_WEIGHTS, voltage_weight: float = VOLTAGE_WEIGHT) -> np.ndarray:
-    """Discrete LQR gain K (1 x 4), V = -K x, for the model linearised at upright.
+def lqr_design(control_frequency: float, parameters: Mapping[str, float] | None = None,
+               state_weights: Sequence[float] = STATE_WEIGHTS, voltage_weight: float = VOLTAGE_WEIGHT,
+               pendulum_angle: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(K, S): discrete LQR gain (1 x 4), V = -K x, and cost-to-go matrix, x^T S x.
 
-    The linearisation covers one control period at `control_frequency` (Hz) with
-    the given physical `parameters`; the gain solves the discrete Riccati equation.
+    For the model linearised at rest with the pendulum at `pendulum_angle` (rad; 0
+    upright, pi hanging) over one control period at `control_frequency` (Hz), with
+    the given physical `parameters`; S solves the discrete Riccati equation.
     """
     physics = qube.make_physics(control_frequency, parameters)
     nstep = qube.substeps_per_control_period(control_frequency)
-    a, b = linearize(physics, np.zeros(4), 0.0, nstep)
+    a, b = linearize(physics, np.array([0.0, pendulum_angle, 0.0, 0.0]), 0.0, nstep)
     q, r = np.diag(state_weights), np.array([[voltage_weight]])
     s = scipy.linalg.solve_discrete_are(a, b, q, r)
-    return np.linalg.solve(r + b.T @ s @ b, b.T @ s @ a)
+    return np.linalg.solve(r + b.T @ s @ b, b.T @ s @ a), s
+
+
+def lqr_gain(control_frequency: float, parameters: Mapping[str, float] | None = None,
+             state_weights: Sequence[float] = STATE_WEIGHTS, voltage_weight: float = VOLTAGE_WEIGHT
+             ) -> np.ndarray:
+    """Discrete LQR gain K (1 x 4), V = -K x, for the model linearised at upright (see `lqr_design`)."""
+    return lqr_design(control_frequency, parameters, state_weights, voltage_weight)[0]
 
 
 class BalanceLQR(Controller):
@@ -48,7 +57,8 @@ class BalanceLQR(Controller):
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
                  parameters: Mapping[str, float] | None = None):
-        self.gain = lqr_gain(control_frequency, parameters)[0]
+        gain, self.cost_matrix = lqr_design(control_frequency, parameters)
+        self.gain = gain[0]
         self.voltage_limit = voltage_limit
 
     def voltage_for(self, state: np.ndarray, target: float = 0.0) -> float:
@@ -56,6 +66,18 @@ class BalanceLQR(Controller):
         error = state - np.array([target, 0.0, 0.0, 0.0])
         volts = -float(self.gain @ error)
         return min(max(volts, -self.voltage_limit), self.voltage_limit)
+
+    def cost_to_go(self, state: np.ndarray, target: float = 0.0) -> float:
+        """x^T S x of the error from upright at `target`: the LQR's predicted cost."""
+        error = state - np.array([target, 0.0, 0.0, 0.0])
+        return float(error @ self.cost_matrix @ error)
+
+    def level_for_voltage(self, volts: float) -> float:
+        """The largest cost-to-go level whose ellipsoid keeps the unsaturated LQR within +-`volts` (V).
+
+        On the ellipsoid x^T S x = c the largest |K x| is sqrt(c K S^-1 K^T).
+        """
+        return volts**2 / float(self.gain @ np.linalg.solve(self.cost_matrix, self.gain))
 
     def __call__(self, observation: Any) -> float:
         return self.voltage_for(*split_observation(observation))

@@ -1,0 +1,65 @@
+"""Dampen: energy shaping down to rest hanging, then an LQR about hanging.
+
+From any state (swinging, revolving or upright) `EnergyShaping` drains the total
+energy towards that of the pendulum at rest hanging, -2 mp g l, with the arm's
+swing centre held at 0. Near rest an LQR designed on the model linearised about
+hanging (`lqr_design(pendulum_angle=pi)`) damps the last small swing, which the
+energy law, whose error vanishes quadratically there, would leave to the
+pendulum's own friction, and centres the arm. It acts inside the ellipsoid of
+its cost-to-go on which it would ask for at most `HANG_VOLTAGE`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from qube_suite.angles import wrap_angle
+from qube_suite.baselines.base import Controller, split_observation
+from qube_suite.baselines.energy import EnergyShaping
+from qube_suite.baselines.lqr import lqr_design
+from qube_suite.baselines.model import RigidBodyModel
+from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
+
+STATE_WEIGHTS = (2.0, 5.0, 0.05, 0.5)
+"""LQR weights on [theta, alpha - pi, dtheta, dalpha] (rad, rad/s) about hanging."""
+HANG_VOLTAGE = 6.0
+"""The hanging LQR acts inside its cost-to-go ellipsoid where it would ask for at most this (V)."""
+
+
+class Dampen(Controller):
+    """Brings the pendulum to rest hanging with the arm centred, from any state.
+
+    Args:
+        control_frequency: control steps per second (Hz) the LQR is designed for.
+        voltage_limit: output clip (V).
+        parameters: physical parameters of the model to design for (nominal by default).
+    """
+
+    name = "dampen"
+    tasks = ("dampen", "dampen_sparse")
+
+    def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
+                 parameters: Mapping[str, float] | None = None):
+        self.voltage_limit = voltage_limit
+        model = RigidBodyModel.from_parameters(parameters)
+        self.shaping = EnergyShaping(model, voltage_limit)
+        self.energy_set = -model.swing_up_energy
+        gain, self.cost_matrix = lqr_design(control_frequency, parameters, STATE_WEIGHTS,
+                                            pendulum_angle=math.pi)
+        self.gain = gain[0]
+        self.hang_level = HANG_VOLTAGE**2 / float(self.gain @ np.linalg.solve(self.cost_matrix, self.gain))
+
+    def voltage_for(self, state: np.ndarray) -> float:
+        """Voltage (V) for `state` [theta, alpha, dtheta, dalpha]."""
+        error = np.array([state[0], wrap_angle(state[1] - math.pi), state[2], state[3]])
+        if error @ self.cost_matrix @ error < self.hang_level:
+            volts = -float(self.gain @ error)
+            return min(max(volts, -self.voltage_limit), self.voltage_limit)
+        return self.shaping.voltage(state, self.energy_set)
+
+    def __call__(self, observation: Any) -> float:
+        return self.voltage_for(split_observation(observation)[0])
