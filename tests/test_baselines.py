@@ -59,7 +59,7 @@ def starting_from(task_class, state):
     """A `task_class` task whose episodes start from `state` [theta, alpha, dtheta, dalpha]."""
 
     class Task(task_class):
-        def initial_state(self):
+        def initial_state(self, random):
             return np.array(state, dtype=np.float64)
 
     return Task(random=0)
