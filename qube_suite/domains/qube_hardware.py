@@ -16,6 +16,10 @@ What differs from the simulated domain, as on a real Qube:
 * a step reads the board's next sample and then writes the voltage, as the
   Quanser toolkits do: a voltage takes effect one sample after the observation
   it answers (the simulated domain has no such latency);
+* randomization effects on the state or the voltage (`set_sensor_model`,
+  `set_actuator_model`: noise, delays, dead-zone, ...) apply to what tasks see and
+  send; the reset controllers work on the plain estimate. Physical parameters and
+  control-period jitter belong to the plant and cannot be randomized here;
 * starts are reached by reset controllers (`qube_suite.baselines`), with the LED
   yellow while they drive: "settle hanging" (dampen), "swing up and hold"
   (swing-up with LQR balance) for starts near upright, and for other starts
@@ -33,8 +37,9 @@ from typing import Any
 import numpy as np
 from dm_control.rl import control
 
-from qube_suite import baselines, parameters
+from qube_suite import baselines
 from qube_suite.angles import wrap_angle
+from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.hardware import conventions
 from qube_suite.hardware.errors import HardwareError
 from qube_suite.hardware.estimation import StateEstimator
@@ -91,9 +96,14 @@ class Physics(control.Physics):
         self._reset_voltage_limit = float(reset_voltage_limit)
         self._reset_timeout = float(reset_timeout)
         self._controllers: dict[str, baselines.Controller] = {}
+        self._model = RigidBodyModel.from_parameters()
         self._voltage = 0.0
         self._led: tuple[float, float, float] = RESET_LED
-        self._measured: tuple[float, float, float, float] = (0.0, math.pi, 0.0, 0.0)
+        self._estimate: tuple[float, float, float, float] = (0.0, math.pi, 0.0, 0.0)
+        self._measured = self._estimate
+        self._sensor_model = None
+        self._sensor_reset = None
+        self._actuator_model = None
         self._samples = 0
         self._episode_start = 0
         self._twin = None
@@ -153,8 +163,23 @@ class Physics(control.Physics):
 
     def step(self, nstep: int = 1) -> None:
         """Wait for the next `nstep` samples, writing the commanded voltage at each."""
+        volts = self._voltage if self._actuator_model is None else self._actuator_model(self._voltage)
         for _ in range(nstep):
-            self._sample(self._voltage)
+            self._sample(volts)
+        self._measured = self._estimate if self._sensor_model is None else self._sensor_model(self._estimate)
+
+    def set_sensor_model(self, sensor_model) -> None:
+        """Let tasks see `sensor_model(estimate)` instead of the board's estimate; None: the estimate.
+
+        A `reset(estimate)` method, if present, is called when an episode starts.
+        """
+        self._sensor_model = sensor_model
+        self._sensor_reset = getattr(sensor_model, "reset", sensor_model)
+
+    def set_actuator_model(self, actuator_model) -> None:
+        """Write `actuator_model(volts)` to the board instead of the commanded voltage; None: as
+        commanded. A `reset(volts)` method, if present, is called with 0 V when an episode starts."""
+        self._actuator_model = actuator_model
 
     def reset(self) -> None:
         """Get the board ready for an episode: open it the first time, else wake it from idle."""
@@ -162,6 +187,7 @@ class Physics(control.Physics):
             self.qube.open()
             self._estimator.reset()
             self._sample(0.0)
+            self._measured = self._estimate
         elif self.qube.is_idle:
             self.qube.resume()
         self._voltage = 0.0
@@ -178,10 +204,13 @@ class Physics(control.Physics):
         else:
             self._drive("dampen", self._hanging_at_rest, "settle hanging")
             if math.pi - abs(target_alpha) > NEAR_GOAL:
-                energy = _pendulum_energy(target_alpha, float(state[3]))
-                self._drive("swingup", lambda s: _pendulum_energy(s[1], s[3]) >= energy,
+                energy = self._model.energy(target_alpha, float(state[2]), float(state[3]))
+                self._drive("swingup", lambda s: self._model.energy(s[1], s[2], s[3]) >= energy,
                             "pump the swing", hold=0.0)
         self._voltage = 0.0
+        if hasattr(self._actuator_model, "reset"):
+            self._actuator_model.reset(0.0)
+        self._measured = self._estimate if self._sensor_reset is None else self._sensor_reset(self._estimate)
         self._episode_start = self._samples
 
     def end_episode(self) -> None:
@@ -195,7 +224,7 @@ class Physics(control.Physics):
             from qube_suite.domains import qube
 
             self._twin = qube.make_physics(self._frequency)
-        self._twin.reset_to(self._measured)
+        self._twin.reset_to(self._estimate)
         self._twin.set_led(self._led)
         return self._twin.drawable()
 
@@ -215,7 +244,7 @@ class Physics(control.Physics):
         self.currents, self.encoders, self.others = self.qube.action(
             [conventions.board_voltage(volts)], led=self._led)
         theta, alpha, dtheta, dalpha = self._estimator(self.encoders).tolist()
-        self._measured = (theta, alpha, dtheta, dalpha)
+        self._estimate = (theta, alpha, dtheta, dalpha)
         self._samples += 1
 
     def _controller(self, name: str) -> baselines.Controller:
@@ -231,13 +260,13 @@ class Physics(control.Physics):
         needed = max(1, round(hold * self._frequency))
         held = 0
         for _ in range(round(self._reset_timeout * self._frequency)):
-            held = held + 1 if done(self._measured) else 0
+            held = held + 1 if done(self._estimate) else 0
             if held >= needed:
                 return
-            self._sample(controller(np.array(self._measured)))
+            self._sample(controller(np.array(self._estimate)))
         self._sample(0.0)
         raise ResetError(f"reset failed: could not {purpose} within {self._reset_timeout:g} s "
-                         f"(state {np.round(self._measured, 3).tolist()})")
+                         f"(state {np.round(self._estimate, 3).tolist()})")
 
     @staticmethod
     def _held_upright(state: tuple) -> bool:
@@ -249,15 +278,6 @@ class Physics(control.Physics):
         theta, alpha, dtheta, dalpha = state
         return (math.pi - abs(alpha) < math.radians(3) and abs(theta) < math.radians(10)
                 and abs(dalpha) < 0.3 and abs(dtheta) < 0.3)
-
-
-def _pendulum_energy(alpha: float, dalpha: float) -> float:
-    """The pendulum's energy about its pivot (J), 0 hanging at rest."""
-    p = parameters.NOMINAL
-    half_length = p["pendulum_length"] / 2.0
-    mass = p["pendulum_mass"]
-    inertia = parameters.pendulum_inertia(mass, p["pendulum_length"]) + mass * half_length**2
-    return 0.5 * inertia * dalpha**2 + mass * p["gravity"] * half_length * (1.0 + math.cos(alpha))
 
 
 def make_physics(control_frequency: float = 250.0, **options: Any) -> Physics:
