@@ -1,4 +1,4 @@
-"""The vector environment as a stable-baselines3 `VecEnv`.
+"""The vector environment as a stable-baselines3 `VecEnv`, and a policy feature map as a `VecEnv` wrapper.
 
     from qube_suite.wrappers.sb3 import make_sb3_vec_env
     venv = make_sb3_vec_env("QubeSuite/Swingup-v0", num_envs=16)
@@ -10,13 +10,14 @@ else in qube_suite imports this module.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 import gymnasium
 import numpy as np
+from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
-from stable_baselines3.common.vec_env import VecEnv
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from qube_suite.wrappers.vector_env import QubeVectorEnv
 
@@ -86,3 +87,26 @@ def make_sb3_vec_env(env_id: str, num_envs: int, **kwargs) -> SB3VecEnv:
     env = gymnasium.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
                              autoreset_mode=AutoresetMode.SAME_STEP, **kwargs)
     return SB3VecEnv(env)
+
+
+class VecFeatures(VecEnvWrapper):
+    """Observations (and terminal observations) of `venv` mapped by `features`, a function of a
+    batch of observations (n, k) -> (n, m) (`qube_suite.policies.features`), as float32."""
+
+    def __init__(self, venv: VecEnv, features: Callable[[np.ndarray], np.ndarray]):
+        self._features = features
+        size = features(np.zeros((1,) + venv.observation_space.shape)).shape[1]
+        super().__init__(venv, observation_space=spaces.Box(-np.inf, np.inf, (size,), np.float32))
+
+    def reset(self) -> np.ndarray:
+        return self._map(self.venv.reset())
+
+    def step_wait(self):
+        observations, rewards, dones, infos = self.venv.step_wait()
+        for info in infos:
+            if "terminal_observation" in info:
+                info["terminal_observation"] = self._map(info["terminal_observation"][None, :])[0]
+        return self._map(observations), rewards, dones, infos
+
+    def _map(self, observations: np.ndarray) -> np.ndarray:
+        return self._features(observations).astype(np.float32)

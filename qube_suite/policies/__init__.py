@@ -1,0 +1,44 @@
+"""Learned policies, run by numpy (no torch needed): shipped ones by name, others from files.
+
+    from qube_suite.policies import load_policy, shipped
+    policy = load_policy("ppo:swingup")              # or a path to a policy file
+    voltage = policy(observation)                    # any observation of the policy's task
+    shipped()                                        # {"ppo:swingup": path, ...}
+
+Shipped policies are `<algo>_<task>.npz` files beside this module, trained with
+`qube-suite train` (see the README's "Reinforcement learning" section); the file
+format is described in `qube_suite.policies.mlp`.
+"""
+
+from __future__ import annotations
+
+import pathlib
+
+from qube_suite.policies.mlp import MLPPolicy, load, save
+
+DIRECTORY = pathlib.Path(__file__).resolve().parent
+"""Where the shipped policy files are."""
+
+
+def shipped() -> dict[str, pathlib.Path]:
+    """Shipped policies: spec ("ppo:swingup") -> file path."""
+    return {path.stem.replace("_", ":", 1): path for path in sorted(DIRECTORY.glob("*.npz"))}
+
+
+def load_policy(spec: str | pathlib.Path) -> MLPPolicy:
+    """The policy `spec` names: a shipped policy ("ppo:swingup") or the path of a policy file.
+
+    Raises ValueError for an unknown name or a missing, corrupt or invalid file.
+    """
+    text = str(spec)
+    available = shipped()
+    if text in available:
+        return load(available[text], name=text)
+    path = pathlib.Path(text).expanduser()
+    if path.suffix == ".npz" or path.exists():
+        return load(path)
+    raise ValueError(f"unknown policy {text!r}: shipped policies are {', '.join(available) or 'none'}, "
+                     "or give the path of a .npz policy file")
+
+
+__all__ = ["DIRECTORY", "MLPPolicy", "load", "load_policy", "save", "shipped"]

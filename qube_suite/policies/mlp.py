@@ -1,0 +1,159 @@
+"""A learned policy run by numpy: observation features, normalisation, an MLP, the voltage.
+
+A policy file (`.npz`, written by `save`, read by `load`) holds plain arrays and
+one JSON record, nothing pickled:
+
+- `weight_0`, `bias_0`, ..., `weight_k`, `bias_k`: the layers of the actor's
+  mean, `weight_i` of shape (outputs, inputs) as in torch; the hidden layers are
+  followed by `activation`, the last one is linear;
+- `observation_mean`, `observation_var`: the running statistics of the features
+  during training; features are normalised as (f - mean) / sqrt(var + epsilon)
+  and clipped to +-clip;
+- `meta`: JSON with `format` (1), `feature_map` (`qube_suite.policies.features`),
+  `activation` ("tanh" or "relu"), `squash` (SAC: the output goes through tanh
+  and is scaled from [-1, 1] to [-voltage_limit, voltage_limit]; PPO: the output
+  is the voltage), `epsilon`, `clip`, `voltage_limit` (V), `observation_size`
+  (4, or 5 with a target), `task`, `algo`, and the record of its training.
+
+The action is the deterministic one, the mean of the trained Gaussian, clipped to
++-voltage_limit.
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import zipfile
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from qube_suite.baselines.base import split_observation
+from qube_suite.policies.features import FEATURE_MAPS
+
+FORMAT = 1
+ACTIVATIONS = {"tanh": np.tanh, "relu": lambda x: np.maximum(x, 0.0)}
+REQUIRED_META = ("format", "feature_map", "activation", "squash", "epsilon", "clip", "voltage_limit",
+                 "observation_size", "task", "algo")
+
+
+class MLPPolicy:
+    """A learned policy with the controller interface: `voltage = policy(observation)`.
+
+    Takes any Qube observation of its task (a dm_env mapping or a flat Gymnasium
+    vector, plain or trig layout) and returns the motor voltage (V), within
+    +-`voltage_limit`. It keeps no memory between steps; `reset` does nothing.
+    """
+
+    def __init__(self, weights: Sequence[np.ndarray], biases: Sequence[np.ndarray],
+                 observation_mean: np.ndarray, observation_var: np.ndarray, meta: Mapping[str, Any],
+                 name: str = "policy"):
+        self.weights = [np.asarray(w, dtype=np.float64) for w in weights]
+        self.biases = [np.asarray(b, dtype=np.float64) for b in biases]
+        self.observation_mean = np.asarray(observation_mean, dtype=np.float64)
+        self.observation_var = np.asarray(observation_var, dtype=np.float64)
+        self.meta = dict(meta)
+        self.name = name
+        _check(self.weights, self.biases, self.observation_mean, self.observation_var, self.meta)
+        self.tasks = (self.meta["task"],)
+        self.voltage_limit = float(self.meta["voltage_limit"])
+        self._features = FEATURE_MAPS[self.meta["feature_map"]]
+        self._activation = ACTIVATIONS[self.meta["activation"]]
+        self._scale = 1.0 / np.sqrt(self.observation_var + float(self.meta["epsilon"]))
+        self._clip = float(self.meta["clip"])
+        self._size = int(self.meta["observation_size"])
+
+    def reset(self) -> None:
+        """Nothing to forget: the policy has no memory."""
+
+    def actions(self, observations: np.ndarray) -> np.ndarray:
+        """Voltages (V), shape (n,), for standard observations of shape (n, 4) or (n, 5)."""
+        features = (self._features(observations) - self.observation_mean) * self._scale
+        x = np.clip(features, -self._clip, self._clip)
+        last = len(self.weights) - 1
+        for i, (weight, bias) in enumerate(zip(self.weights, self.biases, strict=True)):
+            x = x @ weight.T + bias
+            if i < last:
+                x = self._activation(x)
+        volts = x[:, 0]
+        if self.meta["squash"]:
+            volts = np.tanh(volts) * self.voltage_limit
+        return np.clip(volts, -self.voltage_limit, self.voltage_limit)
+
+    def __call__(self, observation: Any) -> float:
+        """Motor voltage (V) for one observation of the policy's task."""
+        state, target = split_observation(observation)
+        row = np.append(state, target) if self._size == 5 else state
+        return float(self.actions(row[None, :])[0])
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+def save(policy: MLPPolicy, path: str | pathlib.Path) -> pathlib.Path:
+    """Write `policy` to `path` (a `.npz` file) and return the path."""
+    path = pathlib.Path(path)
+    arrays = {"observation_mean": policy.observation_mean, "observation_var": policy.observation_var,
+              "meta": np.array(json.dumps(policy.meta, sort_keys=True))}
+    for i, (weight, bias) in enumerate(zip(policy.weights, policy.biases, strict=True)):
+        arrays[f"weight_{i}"], arrays[f"bias_{i}"] = weight.astype(np.float32), bias.astype(np.float32)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("wb") as file:
+        np.savez_compressed(file, **arrays)
+    return path
+
+
+def load(path: str | pathlib.Path, name: str | None = None) -> MLPPolicy:
+    """The policy in the file at `path`; ValueError if it is missing, not a policy file or corrupt."""
+    path = pathlib.Path(path)
+    if not path.is_file():
+        raise ValueError(f"no policy file at {path}")
+    if not zipfile.is_zipfile(path):
+        raise ValueError(f"{path} is not a policy file (not an .npz archive)")
+    try:
+        with np.load(path, allow_pickle=False) as arrays:
+            meta = json.loads(str(arrays["meta"]))
+            layers = sum(1 for key in arrays.files if key.startswith("weight_"))
+            weights = [arrays[f"weight_{i}"] for i in range(layers)]
+            biases = [arrays[f"bias_{i}"] for i in range(layers)]
+            mean, var = arrays["observation_mean"], arrays["observation_var"]
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as error:
+        raise ValueError(f"{path} is not a readable policy file ({type(error).__name__}: {error})") from error
+    try:
+        return MLPPolicy(weights, biases, mean, var, meta, name=name or path.stem)
+    except ValueError as error:
+        raise ValueError(f"{path} is not a valid policy file: {error}") from error
+
+
+def _check(weights: list[np.ndarray], biases: list[np.ndarray], mean: np.ndarray, var: np.ndarray,
+           meta: dict[str, Any]) -> None:
+    """ValueError unless the arrays and the record make a policy this module can run."""
+    missing = [key for key in REQUIRED_META if key not in meta]
+    if missing:
+        raise ValueError(f"meta lacks {', '.join(missing)}")
+    if meta["format"] != FORMAT:
+        raise ValueError(f"format {meta['format']!r}, this qube_suite reads format {FORMAT}")
+    if meta["feature_map"] not in FEATURE_MAPS:
+        raise ValueError(f"unknown feature map {meta['feature_map']!r}; known: {', '.join(FEATURE_MAPS)}")
+    if meta["activation"] not in ACTIVATIONS:
+        raise ValueError(f"unknown activation {meta['activation']!r}; known: {', '.join(ACTIVATIONS)}")
+    if meta["observation_size"] not in (4, 5):
+        raise ValueError(f"observation_size must be 4 or 5, got {meta['observation_size']!r}")
+    if not weights or len(weights) != len(biases):
+        raise ValueError("no layers, or weights and biases that do not pair up")
+    inputs = FEATURE_MAPS[meta["feature_map"]](np.zeros((1, meta["observation_size"]))).shape[1]
+    if mean.shape != (inputs,) or var.shape != (inputs,) or np.any(var < 0):
+        raise ValueError(f"normalisation statistics must be {inputs} values (variances >= 0)")
+    for i, (weight, bias) in enumerate(zip(weights, biases, strict=True)):
+        if weight.ndim != 2 or weight.shape[1] != inputs or bias.shape != (weight.shape[0],):
+            raise ValueError(f"layer {i}: weight {weight.shape} and bias {bias.shape} do not fit "
+                             f"{inputs} inputs")
+        inputs = weight.shape[0]
+    if inputs != 1:
+        raise ValueError(f"the last layer gives {inputs} outputs, not one voltage")
+    arrays = [*weights, *biases, mean, var]
+    if not all(np.isfinite(a).all() for a in arrays):
+        raise ValueError("weights or statistics are not finite")
+    if not (float(meta["voltage_limit"]) > 0 and float(meta["epsilon"]) >= 0 and float(meta["clip"]) > 0):
+        raise ValueError("voltage_limit and clip must be positive, epsilon non-negative")

@@ -1,0 +1,166 @@
+"""Train a policy on a Qube task with stable-baselines3 and export it as a numpy policy file.
+
+    from qube_suite.training import train
+    result = train("swingup", algo="ppo", steps=2_000_000, seed=0, out="runs/swingup")
+    result.policy                                    # runs/swingup/best_policy.npz
+
+Needs the optional `rl` extra (stable-baselines3, torch, tensorboard), which this
+package imports only inside `train`. A run's directory holds `progress.csv` and
+TensorBoard event files (`tensorboard --logdir DIR`), `evaluations.npz`,
+`checkpoints/` (model and VecNormalize statistics), `model.zip` and
+`vecnormalize.pkl` at the end, `policy.npz` (the final policy),
+`best_policy.npz` (the policy at its best periodic evaluation) and
+`training.json` (settings, steps and wall time).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import json
+import pathlib
+import time
+from typing import Any
+
+from qube_suite import randomization as randomization_configs
+from qube_suite import suite
+from qube_suite.training.hyperparameters import HYPERPARAMETERS
+
+RL_EXTRA = ("stable_baselines3", "torch", "tensorboard")
+INSTALL_HINT = "install torch==2.13.0 first (a CPU build), then `pip install 'qube_suite[rl]'`"
+
+
+@dataclasses.dataclass
+class TrainingResult:
+    """What a training run left: its directory, policy files, steps and wall-clock time (s)."""
+
+    directory: pathlib.Path
+    policy: pathlib.Path
+    final_policy: pathlib.Path
+    steps: int
+    wall_time: float
+    best_mean_return: float
+
+
+def require_rl() -> None:
+    """ImportError, in one line saying how to install them, unless the `rl` extra's packages are present."""
+    missing = [name for name in RL_EXTRA if importlib.util.find_spec(name) is None]
+    if missing:
+        raise ImportError(f"training needs {', '.join(missing)}: {INSTALL_HINT}")
+
+
+def _describe(randomization: Any) -> Any:
+    if randomization is None or isinstance(randomization, (str, pathlib.Path)):
+        return None if randomization is None else str(randomization)
+    return "custom"
+
+
+def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, randomization: Any = None,
+          domain: str = "qube", out: str | pathlib.Path | None = None, num_envs: int | None = None,
+          domain_kwargs: dict[str, Any] | None = None, evaluations: int = 20, eval_episodes: int = 8,
+          checkpoints: int = 10, progress: bool = True,
+          hyperparameters: dict[str, Any] | None = None) -> TrainingResult:
+    """Train `algo` ("ppo" or "sac") on `task` for `steps` environment steps and export the policy.
+
+    PPO rounds `steps` up to whole rollouts (n_steps x num_envs).
+
+    Args:
+        task, domain, randomization, domain_kwargs: as `suite.load`; training and
+            evaluation episodes use the task's default settings (250 Hz, 3 V).
+        seed: seeds the networks, the exploration and the environments.
+        out: run directory (default `runs/<algo>_<task>_<seed>`).
+        num_envs: environments stepped together (default: the algorithm's `num_envs`).
+        evaluations, eval_episodes: evaluate the deterministic policy this many times
+            during training, over this many episodes each.
+        checkpoints: save the model this many times during training.
+        progress: show a progress bar (tqdm).
+        hyperparameters: overrides of `HYPERPARAMETERS[algo]`.
+    """
+    if algo not in HYPERPARAMETERS:
+        raise ValueError(f"unknown algorithm {algo!r}; valid: {', '.join(HYPERPARAMETERS)}")
+    if domain not in suite.TASKS_BY_DOMAIN or task not in suite.TASKS_BY_DOMAIN[domain]:
+        raise ValueError(f"unknown domain/task {domain}/{task}; see `qube-suite list`")
+    if not (isinstance(steps, int) and steps > 0):
+        raise ValueError(f"steps must be a positive integer, got {steps!r}")
+    if randomization is not None:
+        randomization_configs.load(randomization)  # a bad config fails here, before any environment
+    require_rl()
+    return _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
+                  eval_episodes, checkpoints, progress, {**HYPERPARAMETERS[algo], **(hyperparameters or {})})
+
+
+def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
+           eval_episodes, checkpoints, progress, hyperparameters) -> TrainingResult:
+    import stable_baselines3
+    import torch
+    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
+    from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from qube_suite.policies import export, save
+    from qube_suite.training.callbacks import OnNewBest, ProgressBar
+    from qube_suite.training.environments import make_vec_env
+
+    torch.set_num_threads(1)  # small networks: one thread is fastest, and leaves cores to the worlds
+    out = pathlib.Path(out or f"runs/{algo}_{task}_{seed}")
+    out.mkdir(parents=True, exist_ok=True)
+    settings = dict(hyperparameters)
+    num_envs = num_envs or settings.pop("num_envs")
+    settings.pop("num_envs", None)
+    if algo == "ppo":  # minibatches no larger than a rollout
+        settings["batch_size"] = min(settings["batch_size"], settings["n_steps"] * num_envs)
+    env_kwargs = {"domain": domain, "randomization": randomization, "domain_kwargs": domain_kwargs}
+    venv = VecNormalize(make_vec_env(task, num_envs, seed, **env_kwargs), gamma=settings["gamma"],
+                        norm_reward=algo == "ppo")
+    eval_worlds = 1 if domain != "qube" else min(eval_episodes, 8)
+    eval_venv = VecNormalize(make_vec_env(task, eval_worlds, seed + 100_000, **env_kwargs), training=False,
+                             norm_reward=False)
+    observation_size = venv.unwrapped.observation_space.shape[0]
+    policy_kwargs = dict(settings.pop("policy_kwargs"))
+    activations = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
+    policy_kwargs["activation_fn"] = activations[policy_kwargs["activation_fn"]]
+    model = getattr(stable_baselines3, algo.upper())("MlpPolicy", venv, seed=seed, device="cpu",
+                                                     policy_kwargs=policy_kwargs, **settings)
+    model.set_logger(configure(str(out), ["csv", "tensorboard"]))
+    record = {"algo": algo, "task": task, "domain": domain, "randomization": _describe(randomization),
+              "domain_kwargs": domain_kwargs, "seed": seed, "num_envs": num_envs,
+              "hyperparameters": hyperparameters, "stable_baselines3": stable_baselines3.__version__}
+    start = time.perf_counter()
+
+    def export_to(path: pathlib.Path) -> None:
+        training = {**record, "steps": int(model.num_timesteps), "wall_time_s": time.perf_counter() - start}
+        save(export.from_sb3(model, venv.obs_rms.mean, venv.obs_rms.var, epsilon=venv.epsilon,
+                             clip=venv.clip_obs, feature_map="trig", observation_size=observation_size,
+                             voltage_limit=float(venv.action_space.high[0]), task=task, training=training),
+             path)
+
+    rollout = settings["n_steps"] * num_envs if algo == "ppo" else num_envs
+    total = -(-steps // rollout) * rollout  # PPO learns in whole rollouts
+
+    def every(count: int) -> int:  # callback period in vector steps for `count` events per run
+        return max(1, total // max(1, count) // num_envs)
+
+    evaluation = EvalCallback(eval_venv, n_eval_episodes=eval_episodes, eval_freq=every(evaluations),
+                              deterministic=True, log_path=str(out), verbose=0,
+                              callback_on_new_best=OnNewBest(lambda: export_to(out / "best_policy.npz")))
+    checkpointing = CheckpointCallback(every(checkpoints), str(out / "checkpoints"), name_prefix=algo,
+                                       save_vecnormalize=True)
+    callbacks = [checkpointing, evaluation] + ([ProgressBar(total, evaluation)] if progress else [])
+    try:
+        model.learn(total_timesteps=total, callback=CallbackList(callbacks))
+        wall_time = time.perf_counter() - start
+        model.save(out / "model.zip")
+        venv.save(str(out / "vecnormalize.pkl"))
+        export_to(out / "policy.npz")
+    finally:
+        venv.close()
+        eval_venv.close()
+    best = out / "best_policy.npz"
+    summary = {**record, "steps": int(model.num_timesteps), "wall_time_s": wall_time,
+               "best_mean_return": float(evaluation.best_mean_reward)}
+    (out / "training.json").write_text(json.dumps(summary, indent=2, default=str))
+    return TrainingResult(out, best if best.exists() else out / "policy.npz", out / "policy.npz",
+                          int(model.num_timesteps), wall_time, float(evaluation.best_mean_reward))
+
+
+__all__ = ["HYPERPARAMETERS", "TrainingResult", "require_rl", "train"]

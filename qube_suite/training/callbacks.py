@@ -1,0 +1,42 @@
+"""stable-baselines3 callbacks of `qube-suite train` (imports stable-baselines3)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
+from tqdm import tqdm
+
+
+class ProgressBar(BaseCallback):
+    """A tqdm bar of environment steps, showing the latest evaluation's mean return."""
+
+    def __init__(self, total_steps: int, evaluation: EvalCallback | None = None):
+        super().__init__()
+        self._total = total_steps
+        self._evaluation = evaluation
+        self._bar: tqdm | None = None
+
+    def _on_training_start(self) -> None:
+        self._bar = tqdm(total=self._total, unit="step", unit_scale=True, dynamic_ncols=True)
+
+    def _on_step(self) -> bool:
+        self._bar.update(self.num_timesteps - self._bar.n)
+        if self._evaluation is not None and self._evaluation.evaluations_results:
+            self._bar.set_postfix(eval_return=f"{self._evaluation.last_mean_reward:.0f}", refresh=False)
+        return True
+
+    def _on_training_end(self) -> None:
+        self._bar.close()
+
+
+class OnNewBest(BaseCallback):
+    """Calls `action()` when the parent `EvalCallback` finds a new best mean return."""
+
+    def __init__(self, action: Callable[[], None]):
+        super().__init__()
+        self._action = action
+
+    def _on_step(self) -> bool:
+        self._action()
+        return True
