@@ -12,6 +12,8 @@ EPILOG = """examples:
   qube-suite demo --seed 3        another start state
   qube-suite list                 domains, tasks, Gymnasium ids and controllers
   qube-suite eval --task balance --controller balance --episodes 20 --json
+  qube-suite eval --task swingup --controller ppo:swingup    a shipped learned policy (or a .npz file)
+  qube-suite train --task balance --algo ppo --steps 1000000 --seed 0 --out runs/balance
   qube-suite bench                step speed against Gymnasium, dm_control and raw MuJoCo (minutes)
   qube-suite bench --quick        the same table from a few seconds of measurement
 """
@@ -80,6 +82,18 @@ def _eval(args: argparse.Namespace) -> int:
     return 0
 
 
+def _train(args: argparse.Namespace) -> int:
+    from qube_suite.training import train
+
+    result = train(args.task, algo=args.algo, steps=args.steps, seed=args.seed, domain=args.domain,
+                   randomization=args.randomization, out=args.out, num_envs=args.num_envs,
+                   evaluations=args.evaluations, eval_episodes=args.eval_episodes,
+                   checkpoints=args.checkpoints)
+    print(f"trained {result.steps} steps in {result.wall_time:.0f} s; best evaluation return "
+          f"{result.best_mean_return:.1f}; policy {result.policy} (logs in {result.directory})")
+    return 0
+
+
 def _bench(args: argparse.Namespace) -> int:
     from qube_suite import benchmark
 
@@ -101,11 +115,32 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="example: qube-suite eval --domain qube --task swingup --controller mpc --episodes 20 --json")
     evaluation.add_argument("--domain", default="qube", help="domain name (default: qube)")
     evaluation.add_argument("--task", required=True, help="task name, e.g. swingup")
-    evaluation.add_argument("--controller", required=True, help="controller name, e.g. balance or mpc")
+    evaluation.add_argument("--controller", required=True,
+                            help="controller name (e.g. balance, mpc), shipped policy (e.g. ppo:swingup) "
+                                 "or policy file (.npz)")
     evaluation.add_argument("--episodes", type=int, default=20, help="number of episodes (default: 20)")
     evaluation.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
     evaluation.add_argument("--json", action="store_true", help="print the result as JSON")
     evaluation.set_defaults(run=_eval)
+    training = commands.add_parser(
+        "train", help="train a policy with stable-baselines3 (needs the 'rl' extra)",
+        epilog="example: qube-suite train --task swingup --algo ppo --steps 3000000 --randomization sim2real")
+    training.add_argument("--task", required=True, help="task name, e.g. swingup")
+    training.add_argument("--algo", choices=("ppo", "sac"), default="ppo", help="algorithm (default: ppo)")
+    training.add_argument("--steps", type=int, default=2_000_000, help="environment steps (default: 2000000)")
+    training.add_argument("--seed", type=int, default=0, help="seed (default: 0)")
+    training.add_argument("--randomization", default=None,
+                          help="preset (mild, moderate, sim2real) or YAML file (default: none)")
+    training.add_argument("--domain", choices=("qube", "qube_hardware"), default="qube",
+                          help="domain to train on (default: qube)")
+    training.add_argument("--num-envs", type=int, default=None,
+                          help="environments stepped together (default: 64 for ppo, 4 for sac)")
+    training.add_argument("--evaluations", type=int, default=20,
+                          help="evaluations of the deterministic policy during training (default: 20)")
+    training.add_argument("--eval-episodes", type=int, default=8, help="episodes per evaluation (default: 8)")
+    training.add_argument("--checkpoints", type=int, default=10, help="checkpoints saved (default: 10)")
+    training.add_argument("--out", default=None, help="run directory (default: runs/ALGO_TASK_SEED)")
+    training.set_defaults(run=_train)
     bench = commands.add_parser("bench", help="measure step speed against peers and raw MuJoCo")
     bench.add_argument("--quick", action="store_true", help="short rounds and fewer batch sizes (seconds)")
     bench.set_defaults(run=_bench)
@@ -116,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.run(args)
-    except (ValueError, OSError) as error:
+    except (ValueError, OSError, ImportError) as error:
         print(f"qube-suite: error: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -24,6 +24,7 @@ import numpy as np
 from tqdm import tqdm
 
 from qube_suite import baselines, suite
+from qube_suite.policies import load_policy
 
 SETTLED_TIME = 2.0
 """Success looks at the final 2 s of an episode."""
@@ -88,8 +89,9 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
     """Run `episodes` episodes (seeds `seed`, `seed + 1`, ...) of `policy` and score them.
 
     Args:
-        policy: a controller name from `qube_suite.baselines.CONTROLLERS`, or any
-            callable mapping a dm_env observation to a voltage (with an optional
+        policy: a controller name from `qube_suite.baselines.CONTROLLERS`, a learned
+            policy for `qube_suite.policies.load_policy` ("ppo:swingup" or a
+            policy file's path), or any callable mapping a dm_env observation to a voltage (with an optional
             `reset()` called before each episode).
         domain, task, randomization, task_kwargs, environment_kwargs: as `suite.load`.
         progress: show a progress bar (tqdm, on stderr).
@@ -99,9 +101,11 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
     environment = suite.load(domain, task, task_kwargs={"random": seed, **(task_kwargs or {})},
                              environment_kwargs=environment_kwargs, randomization=randomization)
     name = policy if isinstance(policy, str) else getattr(policy, "name", type(policy).__name__)
-    if isinstance(policy, str):
+    if isinstance(policy, str) and policy in baselines.CONTROLLERS:
         policy = baselines.make(policy, control_frequency=environment.control_frequency,
                                 voltage_limit=environment.task.voltage_limit)
+    elif isinstance(policy, str):
+        policy = load_policy(policy)
     hanging_goal = task.startswith("dampen")
     returns, successes, step_times = [], [], []
     bar = tqdm(total=episodes, unit="episode", disable=not progress, desc=f"{name} on {domain}/{task}")
