@@ -1,0 +1,163 @@
+"""Learned policies: numpy inference, the policy file format, shipped policies, and no torch at import."""
+
+import json
+import math
+import subprocess
+import sys
+from collections import OrderedDict
+
+import numpy as np
+import pytest
+
+from qube_suite import cli, evaluate
+from qube_suite.policies import MLPPolicy, features, load, load_policy, save, shipped
+
+SHIPPED = ("ppo:balance", "ppo:balance_follow", "ppo:dampen", "ppo:rotor", "ppo:swingup",
+           "ppo:swingup_follow")
+
+
+def hand_made(squash=False, observation_size=4, activation="tanh"):
+    """A 2-layer policy with weights chosen by hand: easy to compute by hand."""
+    inputs = 6 if observation_size == 4 else 8
+    weight_0 = np.zeros((2, inputs))
+    weight_0[0, 3] = 2.0                   # sin(alpha) (normalised) -> hidden 0
+    weight_0[1, 4] = 1.0                   # dtheta (normalised) -> hidden 1
+    weight_1 = np.array([[3.0, -1.0]])
+    meta = {"format": 1, "feature_map": "trig", "activation": activation, "squash": squash, "epsilon": 0.0,
+            "clip": 10.0, "voltage_limit": 3.0, "observation_size": observation_size, "task": "balance",
+            "algo": "ppo"}
+    mean, var = np.zeros(inputs), np.ones(inputs)
+    mean[4], var[4] = 1.0, 4.0             # dtheta normalised as (dtheta - 1) / 2
+    return MLPPolicy([weight_0, weight_1], [np.array([0.0, 0.5]), np.array([0.1])], mean, var, meta)
+
+
+def expected(alpha, dtheta, squash=False, activation=np.tanh):
+    out = 3.0 * activation(2.0 * math.sin(alpha)) - activation((dtheta - 1.0) / 2.0 + 0.5) + 0.1
+    out = 3.0 * math.tanh(out) if squash else out
+    return float(np.clip(out, -3.0, 3.0))
+
+
+def test_trig_features():
+    rows = features.trig(np.array([[0.5, -3.0, 1.0, 2.0], [0.0, 0.1, 0.0, 0.0]]))
+    assert rows.shape == (2, 6)
+    np.testing.assert_allclose(rows[0], [math.cos(0.5), math.sin(0.5), math.cos(-3.0), math.sin(-3.0),
+                                         1.0, 2.0])
+    follow = features.trig(np.array([[0.5, 0.0, 0.0, 0.0, 0.2]]))
+    np.testing.assert_allclose(follow[0, 6:], [0.3, 0.2])
+
+
+@pytest.mark.parametrize("squash", [False, True])
+def test_numpy_inference_on_hand_made_weights(squash):
+    policy = hand_made(squash)
+    for alpha, dtheta in [(0.1, 0.0), (-0.3, 2.0), (0.05, -5.0)]:
+        state = np.array([0.2, alpha, dtheta, 0.7])
+        assert policy(state) == pytest.approx(expected(alpha, dtheta, squash), abs=1e-12)
+        assert policy(OrderedDict(state=state)) == policy(state)             # dm_env observation
+        trig = [math.cos(0.2), math.sin(0.2), math.cos(alpha), math.sin(alpha), dtheta, 0.7]
+        assert policy(np.array(trig, np.float32)) == pytest.approx(policy(state), abs=1e-5)
+    np.testing.assert_allclose(policy.actions(np.array([[0.2, 0.1, 0.0, 0.7]])), [expected(0.1, 0.0, squash)])
+
+
+def test_relu_and_clipping_to_the_voltage_limit():
+    policy = hand_made(activation="relu")
+    assert policy(np.array([0.0, 1.0, 0.0, 0.0])) == pytest.approx(
+        expected(1.0, 0.0, activation=lambda x: max(x, 0.0)))
+    big = hand_made()
+    big.weights[-1] = big.weights[-1] * 100
+    assert big(np.array([0.0, 1.0, 0.0, 0.0])) == 3.0 and big(np.array([0.0, -1.0, 0.0, 0.0])) == -3.0
+
+
+def test_follow_policies_take_the_target():
+    policy = hand_made(observation_size=5)
+    with_target = policy(OrderedDict(state=np.array([0.2, 0.1, 0.0, 0.0]), target=np.array([0.5])))
+    assert with_target == policy(np.array([0.2, 0.1, 0.0, 0.0, 0.5]))
+
+
+def test_save_and_load_round_trip(tmp_path):
+    policy = hand_made(squash=True)
+    path = save(policy, tmp_path / "policy.npz")
+    again = load(path)
+    assert again.name == "policy" and again.tasks == ("balance",) and again.voltage_limit == 3.0
+    observations = np.random.default_rng(0).normal(size=(50, 4))
+    np.testing.assert_allclose(again.actions(observations), policy.actions(observations), atol=1e-6)
+    assert load_policy(str(path)).meta == policy.meta
+
+
+def corrupt_files(tmp_path):
+    good = save(hand_made(), tmp_path / "good.npz")
+    with np.load(good) as arrays:
+        arrays = dict(arrays)
+    garbage = tmp_path / "garbage.npz"
+    garbage.write_bytes(b"not a policy")
+    truncated = tmp_path / "truncated.npz"
+    truncated.write_bytes(good.read_bytes()[:200])
+    files = {"missing": tmp_path / "missing.npz", "garbage": garbage, "truncated": truncated}
+
+    def variant(name, **changes):
+        data = {**arrays, **changes}
+        data = {key: value for key, value in data.items() if value is not None}
+        files[name] = tmp_path / f"{name}.npz"
+        np.savez(files[name], **data)
+
+    meta = json.loads(str(arrays["meta"]))
+    variant("no_meta", meta=None)
+    variant("no_layer", weight_1=None, bias_1=None)
+    variant("wrong_shape", weight_1=np.zeros((1, 3)))
+    variant("nan", bias_0=np.array([np.nan, 0.0]))
+    variant("bad_json", meta=np.array("{not json"))
+    variant("future_format", meta=np.array(json.dumps({**meta, "format": 99})))
+    variant("unknown_features", meta=np.array(json.dumps({**meta, "feature_map": "pixels"})))
+    variant("pickled", meta=np.array([{"a": 1}], dtype=object))
+    return files
+
+
+def test_corrupt_or_missing_policy_files_raise_value_error(tmp_path):
+    for path in corrupt_files(tmp_path).values():
+        with pytest.raises(ValueError, match=path.name):
+            load_policy(path)
+
+
+def test_unknown_policy_names_list_the_shipped_ones():
+    with pytest.raises(ValueError, match="ppo:swingup"):
+        load_policy("ppo:juggle")
+
+
+def test_importing_qube_suite_and_running_a_policy_does_not_import_torch():
+    code = ("import sys, qube_suite, qube_suite.policies, qube_suite.cli, qube_suite.training\n"
+            "from qube_suite.policies import load_policy\n"
+            "policy = load_policy('ppo:swingup'); policy([0.0, 3.1, 0.0, 0.0])\n"
+            "print(sorted({'torch', 'stable_baselines3'} & set(sys.modules)))")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert result.stdout.strip() == "[]"
+
+
+def test_the_six_policies_are_shipped_and_listed():
+    assert set(SHIPPED) <= set(shipped())
+    for spec, path in shipped().items():
+        policy = load_policy(spec)
+        assert path.suffix == ".npz" and policy.name == spec and policy.tasks == (spec.split(":")[1],)
+
+
+@pytest.mark.parametrize(("spec", "task", "least"), [
+    ("ppo:swingup", "swingup", 1400), ("ppo:balance", "balance", 1900), ("ppo:dampen", "dampen", 1700),
+    ("ppo:balance_follow", "balance_follow", 1700), ("ppo:swingup_follow", "swingup_follow", 1200),
+    ("ppo:rotor", "rotor", 5)])
+def test_shipped_policies_reach_a_modest_return(spec, task, least):
+    result = evaluate(spec, task=task, episodes=2, seed=1000)
+    assert min(result.returns) >= least, result.returns
+
+
+def test_eval_cli_runs_a_shipped_policy(capsys):
+    assert cli.main(["eval", "--task", "balance", "--controller", "ppo:balance", "--episodes", "1",
+                     "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["policy"] == "ppo:balance" and summary["mean_return"] > 1900
+
+
+def test_eval_cli_reports_a_corrupt_policy_file_in_one_line(tmp_path):
+    bad = tmp_path / "bad.npz"
+    bad.write_text("garbage")
+    result = subprocess.run([sys.executable, "-m", "qube_suite", "eval", "--task", "swingup", "--controller",
+                             str(bad), "--episodes", "1"], capture_output=True, text=True)
+    assert result.returncode == 2 and "not a policy file" in result.stderr
+    assert "Traceback" not in result.stderr

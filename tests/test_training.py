@@ -1,0 +1,91 @@
+"""`qube-suite train` and the export of SB3 policies to numpy; training tests skip without the `rl` extra."""
+
+import importlib.util
+import json
+
+import numpy as np
+import pytest
+
+from qube_suite import cli, training
+from qube_suite.policies import load_policy
+
+HAVE_RL = all(importlib.util.find_spec(name) for name in training.RL_EXTRA)
+needs_rl = pytest.mark.skipif(not HAVE_RL, reason="needs the rl extra (stable-baselines3, torch, "
+                                                    "tensorboard)")
+
+
+def test_missing_rl_extra_is_a_one_line_error(monkeypatch, capsys):
+    monkeypatch.setattr(training.importlib.util, "find_spec",
+                        lambda name: None if name == "torch" else object())
+    assert cli.main(["train", "--task", "balance", "--steps", "100"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert "\n" not in error and "torch" in error and "torch==2.13.0" in error and "[rl]" in error
+
+
+def test_bad_arguments_fail_before_training():
+    with pytest.raises(ValueError, match="unknown algorithm"):
+        training.train("balance", algo="dqn")
+    with pytest.raises(ValueError, match="unknown domain/task"):
+        training.train("juggle")
+    with pytest.raises(ValueError, match="valid"):
+        training.train("balance", randomization={"parameters": {"pendulum_weight": 1.0}})
+
+
+def observations(size, count=64):
+    rng = np.random.default_rng(1)
+    rows = rng.normal(size=(count, size)) * [0.6, 2.0, 5.0, 10.0, 0.8][:size]
+    return rows.astype(np.float32)
+
+
+@needs_rl
+@pytest.mark.parametrize(("algo", "task"), [("ppo", "swingup"), ("ppo", "balance_follow"), ("sac", "dampen")])
+def test_numpy_policy_matches_the_torch_policy(algo, task):
+    import stable_baselines3
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from qube_suite.policies import export
+    from qube_suite.policies.features import trig
+    from qube_suite.training.environments import make_vec_env
+
+    venv = VecNormalize(make_vec_env(task, 2, seed=0), norm_reward=False)
+    raw = observations(venv.unwrapped.observation_space.shape[0])
+    venv.obs_rms.update(trig(raw).astype(np.float32) * 1.5 + 0.3)  # statistics away from (0, 1)
+    kwargs = {"policy_kwargs": {"net_arch": [32, 16]}, "device": "cpu", "seed": 0}
+    model = getattr(stable_baselines3, algo.upper())("MlpPolicy", venv, **kwargs)
+    with __import__("torch").no_grad():  # move the weights off their initial values
+        for parameter in model.policy.parameters():
+            parameter.add_(0.3 * __import__("torch").randn_like(parameter))
+    policy = export.from_sb3(model, venv.obs_rms.mean, venv.obs_rms.var, epsilon=venv.epsilon,
+                             clip=venv.clip_obs, feature_map="trig", observation_size=raw.shape[1],
+                             voltage_limit=3.0, task=task, training={})
+    torch_actions, _ = model.predict(venv.normalize_obs(trig(raw).astype(np.float32)), deterministic=True)
+    numpy_actions = policy.actions(raw)
+    assert np.ptp(numpy_actions) > 0.1  # not all at one limit: the comparison means something
+    np.testing.assert_allclose(numpy_actions, torch_actions[:, 0], atol=1e-4)
+    venv.close()
+
+
+@needs_rl
+@pytest.mark.parametrize("algo", ["ppo", "sac"])
+def test_train_cli_runs_a_tiny_training(tmp_path, capsys, algo):
+    out = tmp_path / "run"
+    assert cli.main(["train", "--task", "balance", "--algo", algo, "--steps", "300", "--seed", "3",
+                     "--num-envs", "2", "--evaluations", "2", "--eval-episodes", "1", "--checkpoints", "2",
+                     "--out", str(out)]) == 0
+    assert "trained" in capsys.readouterr().out
+    record = json.loads((out / "training.json").read_text())
+    assert record["algo"] == algo and record["steps"] >= 300 and record["wall_time_s"] > 0
+    assert "time/total_timesteps" in (out / "progress.csv").read_text().splitlines()[0]
+    assert list(out.glob("events.out.tfevents.*")) and list((out / "checkpoints").glob("*.zip"))
+    policy = load_policy(out / "policy.npz")
+    assert policy.meta["algo"] == algo and policy.meta["training"]["seed"] == 3
+    assert abs(policy([0.0, 0.1, 0.0, 0.0])) <= 3.0
+
+
+@needs_rl
+def test_training_on_the_hardware_substitute_and_with_randomization(tmp_path):
+    for kwargs in ({"domain": "qube_hardware"}, {"randomization": "sim2real"}):
+        result = training.train("balance", steps=200, num_envs=1, evaluations=1, eval_episodes=1,
+                                checkpoints=1, progress=False, hyperparameters={"n_steps": 256},
+                                out=tmp_path / kwargs.get("domain", "randomized"), **kwargs)
+        assert result.steps == 256 and result.policy.exists()
