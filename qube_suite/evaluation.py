@@ -85,7 +85,7 @@ def succeeded(task: str, pendulum_errors: np.ndarray, terminated: bool, revoluti
 def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: str = "swingup",
              episodes: int = 20, seed: int = 0, randomization: Any = None,
              task_kwargs: dict[str, Any] | None = None, environment_kwargs: dict[str, Any] | None = None,
-             progress: bool = False) -> EvaluationResult:
+             progress: bool = False, domain_kwargs: dict[str, Any] | None = None) -> EvaluationResult:
     """Run `episodes` episodes (seeds `seed`, `seed + 1`, ...) of `policy` and score them.
 
     Args:
@@ -93,13 +93,15 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
             policy for `qube_suite.policies.load_policy` ("ppo:swingup" or a
             policy file's path), or any callable mapping a dm_env observation to a voltage (with an optional
             `reset()` called before each episode).
-        domain, task, randomization, task_kwargs, environment_kwargs: as `suite.load`.
+        domain, task, randomization, task_kwargs, environment_kwargs, domain_kwargs: as
+            `suite.load` (e.g. `domain_kwargs={"plant": {...}}` for the hardware substitute).
         progress: show a progress bar (tqdm, on stderr).
     """
     if not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes must be a positive integer, got {episodes!r}")
     environment = suite.load(domain, task, task_kwargs={"random": seed, **(task_kwargs or {})},
-                             environment_kwargs=environment_kwargs, randomization=randomization)
+                             environment_kwargs=environment_kwargs, randomization=randomization,
+                             domain_kwargs=domain_kwargs)
     name = policy if isinstance(policy, str) else getattr(policy, "name", type(policy).__name__)
     if isinstance(policy, str) and policy in baselines.CONTROLLERS:
         policy = baselines.make(policy, control_frequency=environment.control_frequency,

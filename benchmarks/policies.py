@@ -1,0 +1,55 @@
+"""The shipped learned policies on their tasks: return and success over seeded episodes.
+
+Each shipped policy (`qube_suite.policies.shipped()`, "ppo:<task>") runs on its
+task with default settings (250 Hz, 3 V) on the simulated Qube, and `ppo:swingup`
+also on the hardware substitute (`qube_hardware`), through
+`qube_suite.evaluate` (success as there: no termination and the pendulum within
+10 degrees of its goal for the final 2 s; rotor: at least 5 revolutions). The
+table also gives each policy's training record: environment steps and wall-clock
+time on the machine that trained it.
+
+    python benchmarks/policies.py [--episodes 20] [--seed 0] [--json results.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from qube_suite import evaluate
+from qube_suite.policies import load_policy, shipped
+
+HARDWARE = ("ppo:swingup",)
+"""Shipped policies also scored on the hardware substitute."""
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--episodes", type=int, default=20)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", default=None, help="also write the results to this JSON file")
+    args = parser.parse_args()
+    rows = []
+    print("| policy | domain | task | return (mean ± std) | success | training steps | training wall time |")
+    print("|---|---|---|---|---|---|---|")
+    for spec in shipped():
+        policy = load_policy(spec)
+        training = policy.meta.get("training", {})
+        for domain in ("qube", "qube_hardware") if spec in HARDWARE else ("qube",):
+            result = evaluate(policy, domain=domain, task=policy.tasks[0], episodes=args.episodes,
+                              seed=args.seed)
+            row = {**result.to_dict(), "policy": spec, "training_steps": training.get("steps"),
+                   "training_wall_time_s": training.get("wall_time_s"),
+                   "randomization": training.get("randomization")}
+            rows.append(row)
+            unit = " revolutions" if policy.tasks[0] == "rotor" else ""
+            print(f"| `{spec}` | {domain} | {policy.tasks[0]} | {row['mean_return']:.0f} ± "
+                  f"{row['std_return']:.0f}{unit} | {100 * row['success_rate']:.0f} % | "
+                  f"{row['training_steps'] / 1e6:.2f} M | {row['training_wall_time_s'] / 60:.0f} min |")
+    if args.json:
+        with open(args.json, "w") as file:
+            json.dump(rows, file, indent=2)
+
+
+if __name__ == "__main__":
+    main()
