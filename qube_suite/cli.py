@@ -88,7 +88,7 @@ def _train(args: argparse.Namespace) -> int:
     result = train(args.task, algo=args.algo, steps=args.steps, seed=args.seed, domain=args.domain,
                    randomization=args.randomization, out=args.out, num_envs=args.num_envs,
                    evaluations=args.evaluations, eval_episodes=args.eval_episodes,
-                   checkpoints=args.checkpoints)
+                   checkpoints=args.checkpoints, init=args.init)
     print(f"trained {result.steps} steps in {result.wall_time:.0f} s; best evaluation return "
           f"{result.best_mean_return:.1f}; policy {result.policy} (logs in {result.directory})")
     return 0
@@ -139,6 +139,9 @@ def build_parser() -> argparse.ArgumentParser:
                           help="evaluations of the deterministic policy during training (default: 20)")
     training.add_argument("--eval-episodes", type=int, default=8, help="episodes per evaluation (default: 8)")
     training.add_argument("--checkpoints", type=int, default=10, help="checkpoints saved (default: 10)")
+    training.add_argument("--init", default=None,
+                          help="start from the model of a previous run (its directory), e.g. balance before "
+                               "swingup, or to fine-tune with a randomization")
     training.add_argument("--out", default=None, help="run directory (default: runs/ALGO_TASK_SEED)")
     training.set_defaults(run=_train)
     bench = commands.add_parser("bench", help="measure step speed against peers and raw MuJoCo")

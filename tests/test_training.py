@@ -89,3 +89,34 @@ def test_training_on_the_hardware_substitute_and_with_randomization(tmp_path):
                                 checkpoints=1, progress=False, hyperparameters={"n_steps": 256},
                                 out=tmp_path / kwargs.get("domain", "randomized"), **kwargs)
         assert result.steps == 256 and result.policy.exists()
+
+
+@needs_rl
+def test_init_continues_from_a_previous_run(tmp_path):
+    first = training.train("balance", steps=256, num_envs=1, evaluations=1, eval_episodes=1, checkpoints=1,
+                           progress=False, hyperparameters={"n_steps": 256}, out=tmp_path / "first")
+    before = load_policy(first.final_policy)
+    second = training.train("swingup", steps=256, num_envs=1, evaluations=1, eval_episodes=1, checkpoints=1,
+                            progress=False, hyperparameters={"n_steps": 256, "learning_rate": 0.0},
+                            out=tmp_path / "second", init=first.directory)
+    after = load_policy(second.final_policy)
+    assert after.meta["training"]["init"] == str(first.directory)
+    for old, new in zip(before.weights, after.weights, strict=True):
+        np.testing.assert_array_equal(old, new)  # learning rate 0: the same network
+    with pytest.raises(ValueError, match="not a finished training run"):
+        training.train("swingup", init=tmp_path)
+
+
+@needs_rl
+def test_exploring_starts_start_some_episodes_anywhere():
+    from qube_suite.training.environments import ExploringStarts
+
+    def hanging(random):
+        return np.array([0.0, np.pi, 0.0, 0.0])
+
+    random = np.random.RandomState(0)
+    starts = np.array([ExploringStarts(hanging, 0.5)(random) for _ in range(2000)])
+    anywhere = starts[:, 1] != np.pi
+    assert 0.45 < anywhere.mean() < 0.55
+    assert np.abs(starts[anywhere, 1]).min() < 0.1 and np.abs(starts[anywhere, 0]).max() <= 0.5
+    assert (np.array([ExploringStarts(hanging, 0.0)(random) for _ in range(20)])[:, 1] == np.pi).all()

@@ -10,7 +10,9 @@ TensorBoard event files (`tensorboard --logdir DIR`), `evaluations.npz`,
 `checkpoints/` (model and VecNormalize statistics), `model.zip` and
 `vecnormalize.pkl` at the end, `policy.npz` (the final policy),
 `best_policy.npz` (the policy at its best periodic evaluation) and
-`training.json` (settings, steps and wall time).
+`training.json` (settings, steps and wall time). `init=DIR` continues from the
+model and normalisation statistics a previous run left in DIR, for a curriculum
+(balance, then swing-up) or to fine-tune with a randomization.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from typing import Any
 
 from qube_suite import randomization as randomization_configs
 from qube_suite import suite
-from qube_suite.training.hyperparameters import HYPERPARAMETERS
+from qube_suite.training.hyperparameters import EXPLORING_STARTS, HYPERPARAMETERS
 
 RL_EXTRA = ("stable_baselines3", "torch", "tensorboard")
 INSTALL_HINT = "install torch==2.13.0 first (a CPU build), then `pip install 'qube_suite[rl]'`"
@@ -58,8 +60,8 @@ def _describe(randomization: Any) -> Any:
 def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, randomization: Any = None,
           domain: str = "qube", out: str | pathlib.Path | None = None, num_envs: int | None = None,
           domain_kwargs: dict[str, Any] | None = None, evaluations: int = 20, eval_episodes: int = 8,
-          checkpoints: int = 10, progress: bool = True,
-          hyperparameters: dict[str, Any] | None = None) -> TrainingResult:
+          checkpoints: int = 10, progress: bool = True, hyperparameters: dict[str, Any] | None = None,
+          init: str | pathlib.Path | None = None) -> TrainingResult:
     """Train `algo` ("ppo" or "sac") on `task` for `steps` environment steps and export the policy.
 
     PPO rounds `steps` up to whole rollouts (n_steps x num_envs).
@@ -75,6 +77,10 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         checkpoints: save the model this many times during training.
         progress: show a progress bar (tqdm).
         hyperparameters: overrides of `HYPERPARAMETERS[algo]`.
+        init: directory of a previous run of `algo` on a task with the same
+            observation layout; training starts from its `model.zip` and
+            `vecnormalize.pkl` (the network's shape is that run's; every other
+            hyperparameter is this run's).
     """
     if algo not in HYPERPARAMETERS:
         raise ValueError(f"unknown algorithm {algo!r}; valid: {', '.join(HYPERPARAMETERS)}")
@@ -84,13 +90,19 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         raise ValueError(f"steps must be a positive integer, got {steps!r}")
     if randomization is not None:
         randomization_configs.load(randomization)  # a bad config fails here, before any environment
+    if init is not None:
+        init = pathlib.Path(init)
+        missing = [name for name in ("model.zip", "vecnormalize.pkl") if not (init / name).is_file()]
+        if missing:
+            raise ValueError(f"init: {init} is not a finished training run (no {', '.join(missing)})")
     require_rl()
     return _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
-                  eval_episodes, checkpoints, progress, {**HYPERPARAMETERS[algo], **(hyperparameters or {})})
+                  eval_episodes, checkpoints, progress, {**HYPERPARAMETERS[algo], **(hyperparameters or {})},
+                  init)
 
 
 def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
-           eval_episodes, checkpoints, progress, hyperparameters) -> TrainingResult:
+           eval_episodes, checkpoints, progress, hyperparameters, init) -> TrainingResult:
     import stable_baselines3
     import torch
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
@@ -110,8 +122,13 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     if algo == "ppo":  # minibatches no larger than a rollout
         settings["batch_size"] = min(settings["batch_size"], settings["n_steps"] * num_envs)
     env_kwargs = {"domain": domain, "randomization": randomization, "domain_kwargs": domain_kwargs}
-    venv = VecNormalize(make_vec_env(task, num_envs, seed, **env_kwargs), gamma=settings["gamma"],
-                        norm_reward=algo == "ppo")
+    starts = EXPLORING_STARTS.get(task, 0.0) if domain == "qube" else 0.0
+    venv = make_vec_env(task, num_envs, seed, exploring_starts=starts, **env_kwargs)
+    if init is None:
+        venv = VecNormalize(venv, gamma=settings["gamma"], norm_reward=algo == "ppo")
+    else:
+        venv = VecNormalize.load(str(init / "vecnormalize.pkl"), venv)
+        venv.training, venv.gamma = True, settings["gamma"]
     eval_worlds = 1 if domain != "qube" else min(eval_episodes, 8)
     eval_venv = VecNormalize(make_vec_env(task, eval_worlds, seed + 100_000, **env_kwargs), training=False,
                              norm_reward=False)
@@ -119,11 +136,16 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     policy_kwargs = dict(settings.pop("policy_kwargs"))
     activations = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
     policy_kwargs["activation_fn"] = activations[policy_kwargs["activation_fn"]]
-    model = getattr(stable_baselines3, algo.upper())("MlpPolicy", venv, seed=seed, device="cpu",
-                                                     policy_kwargs=policy_kwargs, **settings)
+    algorithm = getattr(stable_baselines3, algo.upper())
+    if init is None:
+        model = algorithm("MlpPolicy", venv, seed=seed, device="cpu", policy_kwargs=policy_kwargs, **settings)
+    else:
+        model = algorithm.load(init / "model.zip", env=venv, device="cpu", custom_objects=settings)
+        model.set_random_seed(seed)
     model.set_logger(configure(str(out), ["csv", "tensorboard"]))
     record = {"algo": algo, "task": task, "domain": domain, "randomization": _describe(randomization),
               "domain_kwargs": domain_kwargs, "seed": seed, "num_envs": num_envs,
+              "init": None if init is None else str(init), "exploring_starts": starts,
               "hyperparameters": hyperparameters, "stable_baselines3": stable_baselines3.__version__}
     start = time.perf_counter()
 
