@@ -21,8 +21,7 @@ def _demo(args: argparse.Namespace) -> int:
     from qube_suite import baselines, suite
 
     environment = suite.load("qube", "swingup", task_kwargs={"random": args.seed})
-    controller = baselines.make("swingup", control_frequency=environment.control_frequency,
-                                voltage_limit=environment.task.voltage_limit)
+    controller = baselines.for_environment("swingup", environment)
     print(f"Swing-up on the simulated Qube-Servo 2 at {environment.control_frequency:g} Hz, "
           f"{environment.task.voltage_limit:g} V limit, energy-shaping controller (seed {args.seed})")
     start = time.perf_counter()

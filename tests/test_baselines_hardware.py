@@ -1,4 +1,6 @@
-"""Controllers on the hardware path: the state observer and the latency prediction."""
+"""Controllers on the hardware path: the state observer, the latency prediction, and seeded runs
+on the `qube_hardware` domain (quantised angles, filtered velocities, a sample of latency,
+Coulomb friction and the cable's spring) at the default 3 V."""
 
 import math
 
@@ -6,7 +8,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from qube_suite import baselines
+from qube_suite import baselines, suite
 from qube_suite.baselines import lqr
 from qube_suite.baselines.linearization import linearize
 from qube_suite.baselines.model import RigidBodyModel
@@ -14,7 +16,38 @@ from qube_suite.baselines.observer import StateObserver, kalman_gain
 from qube_suite.domains import qube
 from qube_suite.evaluation import evaluate
 
+
+def hardware_episode(task, controller_name, seed=0, time_limit=8.192, target=None):
+    """Run a controller on `task` on the substitute board; the plant's true states (N x 4) after
+    each step, the observations before it, the voltages sent and the final discount."""
+    with suite.load("qube_hardware", task, task_kwargs={"random": seed},
+                    environment_kwargs={"time_limit": time_limit}) as env:
+        controller = baselines.for_environment(controller_name, env)
+        controller.reset()
+        timestep = env.reset()
+        true_states, observations, voltages = [], [], []
+        while not timestep.last():
+            observation = timestep.observation
+            if target is not None:
+                observation = {"state": observation["state"], "target": np.array([target])}
+            observations.append(observation["state"])
+            voltages.append(controller(observation))
+            timestep = env.step(voltages[-1])
+            true_states.append(env.physics.qube.board.true_state())
+        controller.close()
+        return np.array(true_states), np.array(observations), np.array(voltages), timestep.discount
+
+
 # -- the design pieces --------------------------------------------------------------------------
+
+
+def test_the_domains_state_their_latency_and_controllers_are_built_with_it():
+    assert qube.Physics.latency_steps == 0
+    with suite.load("qube_hardware", "balance") as env:
+        assert env.physics.latency_steps == 1
+        controller = baselines.for_environment("swingup", env)
+        assert controller.observer.latency_steps == 1
+        assert controller.voltage_limit == env.task.voltage_limit
 
 
 def test_kalman_gain_of_a_random_walk_is_the_textbook_one():
@@ -128,3 +161,51 @@ def test_observer_restarts_from_a_measurement_no_motion_explains():
     observer.command(0.0)
     jumped = np.array([0.5, 0.1, 2.0, -1.0])                 # a new episode without reset()
     np.testing.assert_allclose(observer(jumped), jumped)
+
+
+# -- on the hardware path at 3 V ------------------------------------------------------------
+
+
+def test_observer_tracks_the_plant_far_better_than_the_velocity_filter():
+    """During a hardware swing-up: the controller's prediction of the next sample's speeds against the
+    plant's, and the filtered speeds of the observation against the plant's at the same sample."""
+    true_states, observations, voltages, _ = hardware_episode("swingup", "swingup", time_limit=3.0)
+    observer = StateObserver(RigidBodyModel.from_parameters(), 250.0, latency_steps=1)
+    predictions = []
+    for observation, volts in zip(observations, voltages, strict=True):
+        predictions.append(observer(observation))
+        observer.command(volts)
+    before = np.vstack([observations[:1], true_states[:-1]])  # the plant at each observation
+    filter_error = np.sqrt(np.mean((observations[:, 2:] - before[:, 2:]) ** 2))
+    observer_error = np.sqrt(np.mean((np.array(predictions)[:, 2:] - true_states[:, 2:]) ** 2))
+    assert observer_error < filter_error / 4
+
+
+def test_swingup_on_hardware_catches_and_holds_upright():
+    true_states, _, voltages, discount = hardware_episode("swingup", "swingup", time_limit=5.0)
+    upright = np.abs(true_states[:, 1]) < math.radians(10)
+    assert discount == 1.0 and np.abs(true_states[:, 0]).max() < math.radians(70)
+    assert upright[:round(2.0 * 250)].any()                  # up within 2 s
+    first = int(np.argmax(upright))
+    assert upright[first + 50:].all()                         # caught: never falls again
+    assert np.abs(voltages).max() <= 3.0
+
+
+def test_balance_on_hardware_holds_upright():
+    true_states, _, _, discount = hardware_episode("balance", "balance", time_limit=4.0)
+    assert discount == 1.0
+    assert np.abs(true_states[:, 1]).max() < math.radians(5)
+    assert np.abs(true_states[:, 0]).max() < math.radians(20)
+
+
+@pytest.mark.parametrize("target", [0.5, -0.8])
+def test_follow_on_hardware_settles_at_a_steady_target(target):
+    """Despite Coulomb friction and the cable's spring, which the observer's torque estimate cancels."""
+    true_states, _, _, discount = hardware_episode("balance", "follow", time_limit=4.0, target=target)
+    assert discount == 1.0
+    assert np.abs(true_states[-250:, 0] - target).max() < 0.06   # within 3.5 degrees over the last second
+
+
+def test_follow_on_hardware_swings_up_and_follows_the_moving_target():
+    result = evaluate("follow", domain="qube_hardware", task="swingup_follow", episodes=2)
+    assert result.success_rate == 1.0 and min(result.returns) > 1600

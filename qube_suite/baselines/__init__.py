@@ -1,8 +1,10 @@
 """Controllers derived from the Qube model, by name: balance (LQR), swingup, dampen, follow,
-rotor (energy shaping with LQRs) and mpc (sampling MPC).
+rotor (energy shaping with LQRs) and mpc (sampling MPC). Each estimates the state from the
+observed angles with a model-based observer, predicted over the domain's latency.
 
     from qube_suite import baselines
-    controller = baselines.make("swingup", control_frequency=250.0, voltage_limit=3.0)
+    controller = baselines.make("swingup", control_frequency=250.0, voltage_limit=3.0, latency_steps=0)
+    controller = baselines.for_environment("swingup", env)   # the same, read from a suite environment
     voltage = controller(observation)
 """
 
@@ -28,5 +30,14 @@ def make(name: str, **kwargs) -> Controller:
     return CONTROLLERS[name](**kwargs)
 
 
+def for_environment(name: str, environment, **kwargs) -> Controller:
+    """The controller called `name` for a suite `environment`: built for its control frequency,
+    its task's voltage limit and its domain's `latency_steps`; `kwargs` add or override settings."""
+    settings = {"control_frequency": environment.control_frequency,
+                "voltage_limit": environment.task.voltage_limit,
+                "latency_steps": environment.physics.latency_steps}
+    return make(name, **{**settings, **kwargs})
+
+
 __all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "Dampen", "Follow", "Rotor", "SamplingMPC", "SwingUp",
-           "lqr_gain", "make", "split_observation"]
+           "for_environment", "lqr_gain", "make", "split_observation"]

@@ -21,6 +21,12 @@ import numpy as np
 class QubePhysics(Protocol):
     """What a Qube domain provides to tasks and environments."""
 
+    latency_steps: int
+    """Control steps from an observation to the first sample at which the voltage answering
+    it acts: 0 in simulation (a step applies its voltage at once), 1 on hardware (a step
+    reads the next sample, then writes). Controllers predict the state over it
+    (`qube_suite.baselines.for_environment` passes it to them)."""
+
     def arm_angle(self) -> float:
         """Arm angle theta (rad), 0 = centred at the front."""
 

@@ -43,6 +43,10 @@ class Physics(dm_mujoco.Physics):
     perturb how long each `step` lasts.
     """
 
+    latency_steps = 0
+    """A step applies its voltage at once (`interface.QubePhysics.latency_steps`); randomization's
+    `action_delay` adds its steps, unknown to controllers."""
+
     UNMODELLED_PARAMETERS = frozenset({"motor_inductance"})
     """Parameters `set_parameters` records but the simulation does not use: the motor's
     electrical time constant, Lm / Rm = 0.14 ms, is far below the 4 ms timestep."""

@@ -15,7 +15,8 @@ What differs from the simulated domain, as on a real Qube:
   50 s/(s + 50) filter (`hardware.estimation`), so they lag by about 20 ms;
 * a step reads the board's next sample and then writes the voltage, as the
   Quanser toolkits do: a voltage takes effect one sample after the observation
-  it answers (the simulated domain has no such latency);
+  it answers (`latency_steps` = 1, which `baselines.for_environment` passes to
+  the controllers, as do the reset controllers; the simulated domain's is 0);
 * randomization effects on the state or the voltage (`set_sensor_model`,
   `set_actuator_model`: noise, delays, dead-zone, ...) apply to what tasks see and
   send; the reset controllers work on the plain estimate. Physical parameters and
@@ -79,6 +80,10 @@ class Physics(control.Physics):
         reset_timeout: longest a reset may take (s).
         identifier: the board's number.
     """
+
+    latency_steps = 1
+    """A step reads the next sample, then writes its voltage: the voltage acts one sample after the
+    observation it answers (`interface.QubePhysics.latency_steps`)."""
 
     def __init__(self, control_frequency: float = 250.0, board: str = SIMULATED,
                  plant: dict[str, float] | None = None, realtime: bool | None = None,
@@ -250,7 +255,8 @@ class Physics(control.Physics):
     def _controller(self, name: str) -> baselines.Controller:
         if name not in self._controllers:
             self._controllers[name] = baselines.make(name, control_frequency=self._frequency,
-                                                     voltage_limit=self._reset_voltage_limit)
+                                                     voltage_limit=self._reset_voltage_limit,
+                                                     latency_steps=self.latency_steps)
         return self._controllers[name]
 
     def _drive(self, name: str, done: Callable[[tuple], bool], purpose: str, hold: float = HOLD_TIME) -> None:
