@@ -203,7 +203,7 @@ def test_follow_on_hardware_settles_at_a_steady_target(target):
     """Despite Coulomb friction and the cable's spring, which the observer's torque estimate cancels."""
     true_states, _, _, discount = hardware_episode("balance", "follow", time_limit=4.0, target=target)
     assert discount == 1.0
-    assert np.abs(true_states[-250:, 0] - target).max() < 0.06   # within 3.5 degrees over the last second
+    assert np.abs(true_states[-250:, 0] - target).max() < 0.08   # within 4.6 degrees over the last second
 
 
 def test_follow_on_hardware_swings_up_and_follows_the_moving_target():

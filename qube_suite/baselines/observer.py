@@ -21,14 +21,18 @@ integrator (angle, speed, b), b a random walk driven by white jerk of intensity
 sigma_j, measured through the encoder's quantisation, variance q^2/12 with
 q = 2 pi / 2048 rad. b stands for the torque the model leaves out: a real Qube's
 Coulomb friction (estimated at F = 1e-3 N m on the arm, `hardware/plant.py`), the
-cable's spring (1e-3 N m/rad), parameter error. Friction flips by 2 F within a
-sample when the arm reverses; near upright, where arm and pendulum move together,
-that accelerates them by |M^-1 (2 F, 0)| = 19 rad/s^2 each. Taking that as the
-random walk's spread over one sample, sigma_j sqrt(T) = |M^-1 (2 F, 0)_j|, gives
-gains of (0.75, 127 /s, 1.1e4 /s^2) at 250 Hz. Constant unknown torques then
-cost no bias (b absorbs them) and the estimate has no lag for what the model
-predicts. On `qube_hardware` the results are the same for sigma_j ten times
-smaller or three times larger.
+cable's spring (1e-3 N m/rad), parameter error. Friction is a telegraph signal:
+it flips by 2 F whenever the arm reverses, about twice per swing of the pendulum,
+at the rate lambda = w0 / pi (w0^2 = mp g l / M22, 3.4 flips/s). Near upright,
+where arm and pendulum move together, a flip accelerates them by
+|M^-1 (2 F, 0)| = 19 rad/s^2 each. Over a short time t a telegraph signal's
+change has the variance (jump)^2 lambda t of a random walk, so
+sigma_j = |M^-1 (2 F, 0)_j| sqrt(lambda): gains of (0.50, 42 /s, 1.8e3 /s^2) at
+250 Hz, the error poles at 86 rad/s. Constant unknown torques then cost no
+bias (b absorbs them), and the estimate does not lag what the model predicts.
+On `qube_hardware` the results are the same for sigma_j ten times smaller or
+ten times larger; larger gains pass more of the angles' noise to the speeds and
+to b.
 
 Latency: when a voltage acts `latency_steps` = N samples after the measurement it
 answers (1 on hardware: a step reads a sample and then writes), the estimate is
@@ -105,7 +109,9 @@ class StateObserver:
         upright_mass = np.array([[model.base_inertia, -model.coupling],
                                  [-model.coupling, model.pendulum_inertia]])
         jumps = np.abs(np.linalg.solve(upright_mass, [2.0 * UNMODELLED_TORQUE, 0.0]))
-        self.gains = [tuple(joint_gain(period, jump / math.sqrt(period), noise).tolist()) for jump in jumps]
+        reversal_rate = math.sqrt(model.gravity_torque / model.pendulum_inertia) / math.pi
+        self.gains = [tuple(joint_gain(period, jump * math.sqrt(reversal_rate), noise).tolist())
+                      for jump in jumps]
         self.reset()
 
     def reset(self) -> None:
