@@ -204,7 +204,11 @@ def _run(args: argparse.Namespace) -> int:
         from qube_suite import extras
 
         extras.require("matplotlib", "--plot")
-    domain_kwargs = REALTIME_DOMAIN_KWARGS.get(args.domain, {}) if args.realtime else {}
+    domain_kwargs = dict(REALTIME_DOMAIN_KWARGS.get(args.domain, {})) if args.realtime else {}
+    if args.board is not None:
+        if args.domain != "qube_hardware":
+            raise ValueError("--board needs --domain qube_hardware")
+        domain_kwargs["board"] = args.board
     environment = suite.load(args.domain, args.task, task_kwargs={"random": args.seed},
                              randomization=args.randomization, domain_kwargs=domain_kwargs)
     policy, recorder = None, None
@@ -250,7 +254,9 @@ def _add_run(commands) -> None:
                "  qube-suite run --task swingup --controller mpc --plot swingup.png\n"
                "  qube-suite run --task balance --controller balance --episodes 3 --randomization mild\n"
                "  qube-suite run --task swingup --controller mpc --video swingup.mp4 --fps 30\n"
-               "  qube-suite run --domain qube_hardware --task balance --controller balance --realtime",
+               "  qube-suite run --domain qube_hardware --task balance --controller balance --realtime\n"
+               "  qube-suite run --domain qube_hardware --board qube_servo2_usb --task balance "
+               "--controller balance",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     run.add_argument("--domain", default="qube", help="qube (simulation, default) or qube_hardware")
     run.add_argument("--task", required=True, help="a task of 'qube-suite list', e.g. swingup")
@@ -259,6 +265,8 @@ def _add_run(commands) -> None:
     run.add_argument("--seed", type=int, default=0, help="seed of the first episode; then seed + 1, ... "
                                                          "(default: 0)")
     run.add_argument("--randomization", help="a preset (none, mild, moderate, sim2real) or a YAML file")
+    run.add_argument("--board", help="with qube_hardware: simulated (the substitute board, default) or "
+                                     "qube_servo2_usb (a real Qube through Quanser's SDK)")
     run.add_argument("--realtime", action="store_true",
                      help="keep to the wall clock: sleep in simulation, the substitute board's realtime "
                           "mode on qube_hardware")

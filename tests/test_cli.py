@@ -94,6 +94,10 @@ def test_run_paces_the_simulation_by_the_wall_clock(monkeypatch):
      "exceeds the control rate of 250 Hz"),
     (["--task", "balance", "--controller", "balance", "--plot", "no/such/folder/x.png"],
      "the folder no/such/folder does not exist"),
+    (["--task", "balance", "--controller", "balance", "--board", "qube_servo2_usb"],
+     "--board needs --domain qube_hardware"),
+    (["--domain", "qube_hardware", "--board", "qube_usb", "--task", "balance", "--controller", "balance"],
+     "board must be 'simulated' or 'qube_servo2_usb'"),
 ])
 def test_run_user_errors_are_one_line(capsys, argv, message):
     assert cli.main(["run", *argv]) == 2
