@@ -51,6 +51,10 @@ class QubeEnv(gymnasium.Env):
     (-pi, pi], alpha = 0 upright. With `observation="trig"`: [cos theta, sin theta,
     cos alpha, sin alpha, dtheta, dalpha] (+ target).
 
+    ## Reward and start
+    The task's: see its class docstring (e.g. `help(qube_suite.tasks.Swingup)`) and
+    the README's task table. Rewards are per step, at most 1.
+
     ## Episode end
     `terminated` when the task's safe set is left (arm beyond +-90 degrees, and in
     balance tasks the pendulum beyond +-20 degrees); `truncated` at the time limit.
@@ -64,8 +68,16 @@ class QubeEnv(gymnasium.Env):
 
     ## Rendering
     `render_mode="rgb_array"` returns frames from `camera` ("front_oblique",
-    "front" or "top") of `width` x `height`; `"human"` opens MuJoCo's viewer
-    (offered only where a display exists).
+    "front" or "top") of `width` x `height` (`qube_suite.media.FrameRenderer`; the
+    LED strip shows the LED's colour, and on hardware a digital twin shows the
+    measured state); `"human"` opens MuJoCo's viewer (offered only where a display
+    exists).
+
+    Args:
+        environment: a qube_suite dm_env environment (`suite.load`).
+        render_mode: None, "rgb_array" or "human".
+        width, height: frame size (pixels) for "rgb_array".
+        camera: the camera for "rgb_array".
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 250}
