@@ -355,8 +355,7 @@ def _add_eval(commands) -> None:
     evaluation.add_argument("--domain", default="qube", help="domain name (default: qube)")
     evaluation.add_argument("--task", required=True, help="task name, e.g. swingup")
     evaluation.add_argument("--controller", required=True, help="controller name, e.g. balance or mpc")
-    evaluation.add_argument("--episodes", type=_positive_int, default=20,
-                            help="number of episodes (default: 20)")
+    evaluation.add_argument("--episodes", type=int, default=20, help="number of episodes (default: 20)")
     evaluation.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
     evaluation.add_argument("--json", action="store_true", help="print the result as JSON")
     evaluation.set_defaults(run=_eval)
