@@ -19,6 +19,7 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+from tqdm import tqdm
 
 VECTOR_SIZES = (1, 4, 16, 64, 256, 1024)
 ROLLOUT_THREADS = 2
@@ -237,10 +238,17 @@ def measurements(vector_sizes=VECTOR_SIZES) -> list[Measurement]:
 # -- running and printing ----------------------------------------------------------------------
 
 
-def run(rows: list[Measurement], rounds: int, seconds: float) -> list[Result]:
-    """Build every row's subject, then run `rounds` interleaved rounds of about `seconds` each per row."""
+def run(rows: list[Measurement], rounds: int, seconds: float, progress: bool = False) -> list[Result]:
+    """Build every row's subject, then run `rounds` interleaved rounds of about `seconds` each per row.
+
+    `progress`: show a progress bar (tqdm, on stderr, on a terminal) over the rows' calibration and
+    the rounds.
+    """
+    bar = tqdm(total=len(rows) + rounds, unit="round", disable=None if progress else True, desc="benchmark",
+               leave=False)
     results, runners = [], []
     for row in rows:
+        bar.update()
         result = Result(row)
         try:
             runner = row.make()
@@ -255,6 +263,8 @@ def run(rows: list[Measurement], rounds: int, seconds: float) -> list[Result]:
     for _ in range(rounds):
         for result, runner, calls in runners:
             result.rates.append(calls * result.measurement.work / runner(calls))
+        bar.update()
+    bar.close()
     return results
 
 
@@ -299,5 +309,5 @@ def main(quick: bool = False) -> int:
     print(f"qube_suite step speed: {describe_machine()}")
     print(f"best of {rounds} interleaved rounds of ~{seconds:g} s per row; × peer: rate / the peer's "
           f"({PEER} or {DM_PEER}); % of limit: rate / raw rollout at the same N\n")
-    print(table(run(rows, rounds, seconds)))
+    print(table(run(rows, rounds, seconds, progress=True)))
     return 0

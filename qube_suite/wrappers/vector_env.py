@@ -36,6 +36,10 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
     clipped; NaN/inf, a wrong shape or a non-number raise ValueError before any
     world moves.
 
+    ## Reward, start and episode end
+    Each world's are the task's, as in the single environment (the task classes'
+    docstrings, e.g. `help(qube_suite.tasks.Swingup)`, and the README's table).
+
     ## Seeding
     `reset(seed=s)` seeds world i with s + i (like `SyncVectorEnv`); `seed=[s_0,
     ...]` seeds each world (None: not reseeded). The task keyword `random=s` seeds
