@@ -53,13 +53,12 @@ class Randomizer:
 
         Call before the episode's initial state is set: the effects start afresh
         from it when it is. Effects whose settings did not change since the last
-        episode are kept (the domain restarts them), the others built anew.
+        episode are kept (the domain restarts them), the others built anew; either
+        way the noise and jitter of the episode are the draws that follow its seed.
         """
         drawn = sample(self.config, random)
         if self.config.parameters:
             self._physics.set_parameters(drawn.parameters)
-        if drawn.seed is not None:
-            self._rng.seed(drawn.seed)
         changed = set()
         for name, settings in drawn.effects.items():
             kept = self._effects.get(name)
@@ -70,4 +69,6 @@ class Randomizer:
         for signal in changed:
             chain = [effect for name, (_, effect) in self._effects.items() if EFFECTS[name].signal == signal]
             getattr(self._physics, HOOKS[signal])(Chain(chain))
+        if drawn.seed is not None:  # after installing, which measures: the stream starts with the episode
+            self._rng.seed(drawn.seed)
         return drawn
