@@ -13,7 +13,7 @@ to the domain (`randomizer.py`).
 """
 
 from qube_suite.randomization.amplifier import DeadZone, Saturation, VoltageOffset
-from qube_suite.randomization.base import BatchChain, Chain, Effect, Field
+from qube_suite.randomization.base import BatchChain, Chain, Effect, Field, Streams
 from qube_suite.randomization.catalog import EFFECTS
 from qube_suite.randomization.config import Randomization, load, parse
 from qube_suite.randomization.delays import ActionDelay, ObservationDelay
@@ -27,6 +27,6 @@ from qube_suite.randomization.timing import ControlJitter
 __all__ = [
     "EFFECTS", "PRESETS", "ActionDelay", "BatchChain", "Chain", "ControlJitter", "DeadZone", "Distribution",
     "Effect", "Field", "ObservationDelay", "ObservationNoise", "Quantization", "Randomization", "Randomizer",
-    "Sample", "Saturation", "VelocityFilter", "VoltageOffset", "load", "parse", "sample",
+    "Sample", "Saturation", "Streams", "VelocityFilter", "VoltageOffset", "load", "parse", "sample",
     "sample_effects", "sample_parameters",
 ]
