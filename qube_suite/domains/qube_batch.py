@@ -172,15 +172,11 @@ class QubeBatch:
         row[self._theta], row[self._alpha] = theta, alpha
         row[self._dtheta], row[self._dalpha] = dtheta, dalpha
         self._voltage[world] = 0.0
-        exact = [wrap_angle(theta), wrap_angle(alpha), dtheta, dalpha]
+        exact = wrap_angle(theta), wrap_angle(alpha), dtheta, dalpha
         if self._actuator_model is not None or self._sensor_model is not None:
-            rows = np.array([world])
-            if self._actuator_model is not None:
-                self._actuator_model.reset(np.zeros(1), rows)
-            if self._sensor_model is not None:
-                exact = self._sensor_model.reset(np.array([exact]), rows)[0].tolist()
-        for measured, value in zip(self._measured, exact, strict=True):
-            measured[world] = value
+            exact = self._restart_models(world, exact)
+        measured = self._measured
+        measured[0][world], measured[1][world], measured[2][world], measured[3][world] = exact
 
     def measure_afresh(self, worlds: np.ndarray) -> None:
         """Measure `worlds` (indices) from their states again, restarting their sensor model."""
@@ -253,6 +249,16 @@ class QubeBatch:
         if self._models[world] is self._template:
             self._models[world] = copy.copy(self._template)
         return self._models[world]
+
+    def _restart_models(self, world: int, exact: tuple[float, ...]) -> tuple[float, ...]:
+        """Restart `world`'s actuator model at 0 V and its sensor model from its `exact` state;
+        return its measurement."""
+        rows = np.array([world])
+        if self._actuator_model is not None:
+            self._actuator_model.reset(np.zeros(1), rows)
+        if self._sensor_model is not None:
+            exact = tuple(self._sensor_model.reset(np.array([exact]), rows)[0].tolist())
+        return exact
 
     def _buffers_for(self, nstep: int) -> tuple[np.ndarray, np.ndarray]:
         """Control and trajectory arrays of a rollout of `nstep` physics steps."""
