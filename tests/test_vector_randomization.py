@@ -196,3 +196,12 @@ def test_bad_configs_raise_the_single_environment_errors(config):
         QubeVectorEnv("swingup", 2, randomization={"parameters": {"motor_inductance": 1e-3}})
     with pytest.raises(FileNotFoundError):
         QubeVectorEnv("swingup", 2, randomization="missing.yaml")
+
+
+def test_a_reset_of_no_world_draws_nothing():
+    env = gymnasium.make_vec("QubeSuite/Swingup-v0", num_envs=2, randomization=EVERYTHING)
+    env.reset(seed=0)
+    before = env.unwrapped.batch.qube_state()
+    observations, info = env.reset(options={"reset_mask": np.zeros(2, bool)})
+    assert "parameters" not in info
+    np.testing.assert_array_equal(env.unwrapped.batch.qube_state(), before)

@@ -13,7 +13,7 @@ step-duration model (`set_sensor_model`, ...): here effects on arrays with one r
 per world (`qube_suite.randomization.BatchChain`), restarted for just the worlds
 that start an episode. With a step-duration model each world's step is split
 into its own number of equal timesteps (at most `qube.MAX_TIMESTEP`), set in its
-own model, and read from one rollout of the largest number of them.
+own model, and the worlds taking the same number advance in one rollout call.
 """
 
 from __future__ import annotations
@@ -90,7 +90,7 @@ class QubeBatch:
         self._pool = mujoco.rollout.Rollout(nthread=threads)
         self._datas = [mujoco.MjData(template) for _ in range(max(threads, 1))]
 
-        ids = qube.ElementIds(template)
+        ids = self._ids = qube.ElementIds(template)
         self._theta, self._alpha = 1 + ids.arm_qpos, 1 + ids.pendulum_qpos
         self._dtheta, self._dalpha = 1 + template.nq + ids.arm_dof, 1 + template.nq + ids.pendulum_dof
         self._angle_columns = [self._theta, self._alpha]
@@ -100,8 +100,8 @@ class QubeBatch:
         mujoco.mj_getState(template, self._scratch, start, _STATE)
         self._state = np.tile(start, (num_worlds, 1))
         """State of each world (time, qpos, qvel), one row per world."""
-        self._buffers: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        """Physics steps of a rollout -> its control and trajectory arrays."""
+        self._trajectory = np.empty((num_worlds, self._substeps, start.size))
+        self._control = np.zeros((num_worlds, self._substeps, template.nu))
         self._voltage = np.zeros(num_worlds)
         self._worlds = np.arange(num_worlds)
         self._nominal_durations = np.full(num_worlds, self._substeps * template.opt.timestep)
@@ -151,14 +151,12 @@ class QubeBatch:
         self._voltage = volts
         motor = volts if self._actuator_model is None else self._actuator_model(volts)
         if self._step_duration_model is None:
-            nstep, last = self._substeps, None
+            self._control[:, :, 0] = motor[:, None]
+            self._pool.rollout(self._models, self._datas, self._state, self._control, control_spec=_CONTROL,
+                               skip_checks=True, nstep=self._substeps, state=self._trajectory)
+            self._state[:] = self._trajectory[:, -1]
         else:
-            nstep, last = self._split_steps(self._step_duration_model(self._nominal_durations))
-        control, trajectory = self._buffers_for(nstep)
-        control[:, :, 0] = motor[:, None]
-        self._pool.rollout(self._models, self._datas, self._state, control, control_spec=_CONTROL,
-                           skip_checks=True, nstep=nstep, state=trajectory)
-        self._state[:] = trajectory[:, -1] if last is None else trajectory[self._worlds, last]
+            self._step_for(self._step_duration_model(self._nominal_durations), motor)
         self._measure()
 
     def reset_world(self, world: int, state: Sequence[float]) -> None:
@@ -236,7 +234,8 @@ class QubeBatch:
         Takes effect from the next `step`; the state is kept. Raises ValueError for an
         unknown name or an impossible value (the model is unchanged then).
         """
-        self._parameters[world] = qube.write_parameters(self._own_model(world), self._scratch, overrides)
+        self._parameters[world] = qube.write_parameters(self._own_model(world), self._scratch, overrides,
+                                                        self._ids)
 
     def close(self) -> None:
         """Stop the rollout threads."""
@@ -260,20 +259,20 @@ class QubeBatch:
             exact = tuple(self._sensor_model.reset(np.array([exact]), rows)[0].tolist())
         return exact
 
-    def _buffers_for(self, nstep: int) -> tuple[np.ndarray, np.ndarray]:
-        """Control and trajectory arrays of a rollout of `nstep` physics steps."""
-        if nstep not in self._buffers:
-            self._buffers[nstep] = (np.zeros((self.num_worlds, nstep, self._template.nu)),
-                                    np.empty((self.num_worlds, nstep, self._state.shape[1])))
-        return self._buffers[nstep]
-
-    def _split_steps(self, durations: np.ndarray) -> tuple[int, np.ndarray]:
-        """Set each world's timestep to cover its step's duration (s) as `qube.Physics` does; return
-        the physics steps of the rollout and the index of each world's last one."""
+    def _step_for(self, durations: np.ndarray, motor: np.ndarray) -> None:
+        """Advance each world by its own duration (s) with its motor voltage (V) held: equal timesteps
+        of at most MAX_TIMESTEP set in its model, as `qube.Physics` does, and one rollout call for the
+        worlds taking the same number of them."""
         nsteps = qube.physics_steps(durations)
         for options, timestep in zip(self._options, (durations / nsteps).tolist(), strict=True):
             options.timestep = timestep
-        return int(nsteps.max()), nsteps - 1
+        for nstep in np.unique(nsteps).tolist():
+            worlds = np.flatnonzero(nsteps == nstep)
+            trajectory = np.empty((len(worlds), nstep, self._state.shape[1]))
+            self._pool.rollout([self._models[world] for world in worlds.tolist()], self._datas,
+                               self._state[worlds], np.repeat(motor[worlds, None, None], nstep, axis=1),
+                               control_spec=_CONTROL, skip_checks=True, nstep=nstep, state=trajectory)
+            self._state[worlds] = trajectory[:, -1]
 
     def _exact(self, worlds: np.ndarray) -> np.ndarray:
         """Exact [theta, alpha, dtheta, dalpha] of `worlds`, angles wrapped, shape (len(worlds), 4)."""
