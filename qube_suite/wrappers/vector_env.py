@@ -81,7 +81,7 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         reset_hook: called as `hook(batch, world, random)` when a world starts an
             episode, after any randomization's draws and before the task draws its
             start, e.g. to set that world's physical parameters with
-            `batch.set_parameters(world, ...)`.
+            `batch.set_parameters(world, ...)` (which replaces drawn ones).
         randomization: None, or a preset name, config mapping, YAML file path or
             `qube_suite.randomization.Randomization`, drawn per world at every start.
         **task_kwargs: `voltage_limit`, `observation`, `random` (seed).
