@@ -146,7 +146,8 @@ class QubeBatch:
     def step(self, volts: np.ndarray) -> None:
         """Hold `volts` (V, one per world, already validated and limited) for one control period.
 
-        All worlds advance in one rollout call; then they are measured.
+        All worlds advance in one rollout call (with a step-duration model, one per number of
+        physics steps); then they are measured.
         """
         self._voltage = volts
         motor = volts if self._actuator_model is None else self._actuator_model(volts)
