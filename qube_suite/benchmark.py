@@ -32,6 +32,8 @@ ROLLOUT_THREADS = 2
 PEER = "Gymnasium InvertedPendulum-v5 step"
 DM_PEER = "dm_control cartpole swingup step"
 PEER_RESET = "reset: Gymnasium InvertedPendulum-v5"
+REAL_TIME = "reference: real time at 250 Hz (not measured)"
+REAL_TIME_FREQUENCY = 250.0
 
 
 @dataclasses.dataclass
@@ -123,6 +125,27 @@ def _qube_dm_env():
     from qube_suite import suite
 
     return suite.load("qube", "swingup", task_kwargs={"random": 0})
+
+
+def _hardware_dm_env():
+    from qube_suite import suite
+
+    return suite.load("qube_hardware", "swingup", task_kwargs={"random": 0})
+
+
+def _substitute_action() -> Callable[[int], float]:
+    """`QubeServo2.action` on the substitute board in its fast mode, kept open for the run."""
+    from qube_suite.hardware import QubeServo2
+
+    qube = QubeServo2(frequency=REAL_TIME_FREQUENCY)
+    qube.open()
+    volts = np.zeros(1)
+    return _repeated(lambda: qube.action(volts))
+
+
+def _real_time() -> Callable[[int], float]:
+    """Not a measurement: the rate a real board keeps, `REAL_TIME_FREQUENCY` samples per second."""
+    return lambda calls: calls / REAL_TIME_FREQUENCY
 
 
 def _cartpole():
@@ -255,7 +278,14 @@ def measurements(vector_sizes=VECTOR_SIZES, randomized_sizes=RANDOMIZED_SIZES) -
         rows += [Measurement(name, _vector_reset(n), work=n, unit="resets", peer=PEER_RESET,
                              randomized=randomized),
                  Measurement(randomized, _vector_reset(n, RANDOMIZATION), work=n, unit="resets", peer=name)]
-    rows.append(Measurement(PEER_RESET, _peer_reset, unit="resets"))
+    rows += [
+        Measurement(PEER_RESET, _peer_reset, unit="resets"),
+        Measurement("hardware substitute: QubeServo2.action, fast mode", _substitute_action,
+                    unit="samples", peer=REAL_TIME),
+        Measurement("qube_suite dm_env step on qube_hardware (swingup, substitute)",
+                    _dm_env_step(_hardware_dm_env), peer=REAL_TIME),
+        Measurement(REAL_TIME, _real_time, unit="samples"),
+    ]
     return rows
 
 
@@ -333,7 +363,7 @@ def main(quick: bool = False) -> int:
     rows = measurements((1, 16, 256), (16,)) if quick else measurements()
     print(f"qube_suite step speed: {describe_machine()}")
     print(f"best of {rounds} interleaved rounds of ~{seconds:g} s per row; × peer: rate / the peer's "
-          f"({PEER} or {DM_PEER}); % of limit: rate / raw rollout at the same N; with randomization: "
-          f"the rate with the {RANDOMIZATION} preset (× the plain rate)\n")
+          f"({PEER}, {DM_PEER} or real time); % of limit: rate / raw rollout at the same N; "
+          f"with randomization: the rate with the {RANDOMIZATION} preset (× the plain rate)\n")
     print(table(run(rows, rounds, seconds, progress=True)))
     return 0
