@@ -21,7 +21,8 @@ def episode_steps(time_limit: float, control_frequency: float) -> int:
 
     Raises ValueError unless `time_limit` is a positive finite number.
     """
-    if not (isinstance(time_limit, (int, float)) and 0.0 < time_limit < math.inf):
+    if not (isinstance(time_limit, (int, float)) and not isinstance(time_limit, bool)
+            and 0.0 < time_limit < math.inf):
         raise ValueError(f"time_limit must be a positive number of seconds, got {time_limit!r}")
     return max(1, round(time_limit * control_frequency))
 

@@ -20,6 +20,7 @@ from dm_control import mujoco as dm_mujoco
 
 from qube_suite import parameters as params
 from qube_suite.angles import wrap_angle
+from qube_suite.arguments import keywords_of
 
 MODEL_PATH = pathlib.Path(__file__).resolve().parent.parent / "assets" / "qube.xml"
 
@@ -366,6 +367,10 @@ def make_physics(control_frequency: float = 250.0,
     if parameters:
         physics.set_parameters(parameters)
     return physics
+
+
+DOMAIN_KWARGS = keywords_of(make_physics, skip=("control_frequency",))
+"""Keys `suite.load`'s `domain_kwargs` may hold for this domain."""
 
 
 def check_control_frequency(control_frequency: float) -> None:

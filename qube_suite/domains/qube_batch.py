@@ -58,7 +58,7 @@ class QubeBatch:
     """
 
     def __init__(self, num_worlds: int, control_frequency: float = 250.0, threads: int | None = None):
-        if not (isinstance(num_worlds, int) and num_worlds >= 1):
+        if not (isinstance(num_worlds, int) and not isinstance(num_worlds, bool) and num_worlds >= 1):
             raise ValueError(f"num_worlds must be a positive integer, got {num_worlds!r}")
         template = physics_model(control_frequency)
         self.num_worlds = num_worlds
@@ -70,6 +70,8 @@ class QubeBatch:
 
         if threads is None:
             threads = os.cpu_count() or 1
+        if not (isinstance(threads, int) and not isinstance(threads, bool) and threads >= 0):
+            raise ValueError(f"threads must be a non-negative integer or None, got {threads!r}")
         if num_worlds < MIN_WORLDS_PER_THREAD * threads:
             threads = 0
         self._pool = mujoco.rollout.Rollout(nthread=threads)

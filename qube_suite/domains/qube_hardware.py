@@ -39,6 +39,7 @@ from dm_control.rl import control
 
 from qube_suite import baselines
 from qube_suite.angles import wrap_angle
+from qube_suite.arguments import keywords_of
 from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.hardware import conventions
 from qube_suite.hardware.errors import HardwareError
@@ -136,6 +137,11 @@ class Physics(control.Physics):
     def voltage(self) -> float:
         """Motor voltage (V) commanded by the last `set_voltage`."""
         return self._voltage
+
+    @property
+    def max_voltage(self) -> float:
+        """The board wrapper's voltage clip (V): no task may ask for more."""
+        return self.qube.max_voltage
 
     def set_voltage(self, volts: float) -> None:
         """Command `volts` (V); written to the board at the next `step`."""
@@ -278,6 +284,10 @@ class Physics(control.Physics):
         theta, alpha, dtheta, dalpha = state
         return (math.pi - abs(alpha) < math.radians(3) and abs(theta) < math.radians(10)
                 and abs(dalpha) < 0.3 and abs(dtheta) < 0.3)
+
+
+DOMAIN_KWARGS = keywords_of(Physics, skip=("control_frequency",))
+"""Keys `suite.load`'s `domain_kwargs` may hold for this domain: `Physics`'s options."""
 
 
 def make_physics(control_frequency: float = 250.0, **options: Any) -> Physics:

@@ -360,15 +360,17 @@ class QuanserWrapper:
     def _checked_voltages(self, voltages) -> np.ndarray:
         n = len(self._volts)
         try:
-            values = np.asarray(voltages, dtype=np.float64)
+            values = np.asarray(voltages)
         except (TypeError, ValueError):
             self._refuse(f"voltages must be numbers, got {voltages!r}")
+        if values.dtype.kind not in "fiu":  # no text, booleans, complex numbers or objects
+            self._refuse(f"voltages must be real numbers, got {voltages!r} of dtype {values.dtype}")
         if values.shape == () and n == 1:
             values = values.reshape(1)
         if values.shape != (n,):
             self._refuse(f"voltages must have shape ({n},), got {values.shape}")
         limit = self.max_voltage
-        for j, value in enumerate(values.tolist()):
+        for j, value in enumerate(values.astype(np.float64).tolist()):
             if not math.isfinite(value):
                 self._refuse(f"voltages must be finite, got {values}")
             self._volts[j] = -limit if value < -limit else limit if value > limit else value

@@ -11,6 +11,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from qube_suite import suite
+from qube_suite.arguments import check_keywords, keywords_of
 from qube_suite.domains.qube_batch import QubeBatch
 from qube_suite.environment import DEFAULT_CONTROL_FREQUENCY, DEFAULT_TIME_LIMIT, episode_steps
 from qube_suite.wrappers.gym_env import action_space, observation_space
@@ -83,6 +84,13 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
             raise ValueError("randomization is not available in this release of qube_suite; pass None")
         if render_mode is not None:
             raise ValueError("the vector environment does not render; make a single environment to watch one")
+        if not (isinstance(num_envs, int) and not isinstance(num_envs, bool) and num_envs >= 1):
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        check_keywords(task_kwargs, keywords_of(QubeVectorEnv, skip=("task", "num_envs")) + suite.TASK_KWARGS,
+                       f"keyword arguments for the vector environment of {task!r}")
+        modes = [mode.value for mode in AutoresetMode]
+        if autoreset_mode not in [*AutoresetMode, *modes]:
+            raise ValueError(f"unknown autoreset_mode {autoreset_mode!r}; valid: {', '.join(modes)}")
         self.autoreset_mode = AutoresetMode(autoreset_mode)
         seed = task_kwargs.pop("random", None)
         if not (seed is None or isinstance(seed, int)):
