@@ -43,6 +43,10 @@ class Environment(control.Environment):
       raises ValueError and leaves the environment as it was;
     * the episode terminates (discount 0) when the task's safe set is left, and is
       truncated (discount 1) after `time_limit` seconds of control steps;
+    * a step in which the simulation diverges ends the episode too (reward 0,
+      discount 0, the observation of the state before that step), and
+      `physics_error` says why; a step or reset that raises (e.g. a hardware
+      safety stop) ends the episode, so the next `step` resets;
     * the LED shows each step's reward (green high, red low);
     * with a randomization, every reset first draws the episode's parameters and
       effects from the task's random state (`randomization_sample`).
@@ -83,6 +87,17 @@ class Environment(control.Environment):
         return self._step_count
 
     @property
+    def needs_reset(self) -> bool:
+        """True before the first reset, after an episode's last step, and after a step or reset
+        that raised: the next `step` starts a new episode."""
+        return self._reset_next_step
+
+    @property
+    def physics_error(self) -> str | None:
+        """Why the last step ended the episode because the simulation diverged, else None."""
+        return self._physics.physics_error
+
+    @property
     def randomization(self) -> randomization_.Randomization | None:
         """The randomization drawn from at every reset, or None."""
         return None if self._randomizer is None else self._randomizer.config
@@ -101,13 +116,14 @@ class Environment(control.Environment):
     def start_episode(self) -> None:
         """Start a new episode without building a `TimeStep`: the core that `reset` and the
         Gymnasium view share."""
-        self._reset_next_step = False
+        self._reset_next_step = True  # until the episode has started
         self._step_count = 0
         if self._randomizer is not None:
             self._randomization_sample = self._randomizer.start_episode(self._task.random)
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics)
         self._physics.set_led(reward_colour(self._task.get_reward(self._physics)))
+        self._reset_next_step = False
 
     def step(self, action) -> dm_env.TimeStep:
         """Apply `action` for one control period and return the resulting `TimeStep`."""
@@ -124,15 +140,24 @@ class Environment(control.Environment):
         Gymnasium view share.
 
         Returns the reward and the discount: None while the episode goes on, 0.0 when it
-        terminates, 1.0 when it is truncated; after either, the next `step` resets.
+        terminates (or the simulation diverged: reward 0), 1.0 when it is truncated; after
+        either, the next `step` resets. A bad action raises ValueError and changes nothing.
         """
         physics, task = self._physics, self._task
         task.before_step(action, physics)
-        physics.step(self._n_sub_steps)
+        try:
+            physics.step(self._n_sub_steps)
+        except BaseException:
+            self._reset_next_step = True
+            raise
+        self._step_count += 1
+        if physics.physics_error is not None:
+            self._reset_next_step = True
+            physics.end_episode()
+            return 0.0, 0.0
         task.after_step(physics)
         reward = task.get_reward(physics)
         physics.set_led(reward_colour(reward))
-        self._step_count += 1
         discount = task.get_termination(physics)
         if discount is None and self._step_count >= self._episode_steps:
             discount = 1.0

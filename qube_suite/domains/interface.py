@@ -21,6 +21,10 @@ import numpy as np
 class QubePhysics(Protocol):
     """What a Qube domain provides to tasks and environments."""
 
+    physics_error: str | None
+    """Why the last `step` was undone because the simulation diverged, else None (always None on
+    hardware, where faults raise)."""
+
     def arm_angle(self) -> float:
         """Arm angle theta (rad), 0 = centred at the front."""
 

@@ -90,6 +90,8 @@ class QubeBatch:
         self._trajectory = np.empty((num_worlds, self._substeps, start.size))
         self._control = np.zeros((num_worlds, self._substeps, template.nu))
         self._voltage = np.zeros(num_worlds)
+        self.diverged = np.zeros(num_worlds, dtype=bool)
+        """Which worlds' simulation diverged in the last `step` (that step was undone for them)."""
         self._measure()
 
     # -- the domain interface, one value per world ----------------------------------
@@ -125,13 +127,20 @@ class QubeBatch:
     def step(self, volts: np.ndarray) -> None:
         """Hold `volts` (V, one per world, already validated and limited) for one control period.
 
-        All worlds advance in one rollout call; then they are measured.
+        All worlds advance in one rollout call; then they are measured. A world whose
+        simulation diverges (speeds beyond `qube.MAX_PLAUSIBLE_SPEED`, inf or NaN) goes
+        back to its state before the step, its time advanced, and is marked in `diverged`.
         """
         self._voltage = volts
         self._control[:, :, 0] = volts[:, None]
         self._pool.rollout(self._models, self._datas, self._state, self._control, control_spec=_CONTROL,
                            skip_checks=True, nstep=self._substeps, state=self._trajectory)
-        self._state[:] = self._trajectory[:, -1]
+        end = self._trajectory[:, -1]
+        speeds = np.abs(end[:, self._dtheta]) + np.abs(end[:, self._dalpha])
+        self.diverged = ~(speeds < qube.MAX_PLAUSIBLE_SPEED)  # also catches inf and NaN
+        if self.diverged.any():
+            end[self.diverged, 1:] = self._state[self.diverged, 1:]
+        self._state[:] = end
         self._measure()
 
     def reset_world(self, world: int, state: Sequence[float]) -> None:

@@ -81,6 +81,9 @@ class Physics(control.Physics):
         identifier: the board's number.
     """
 
+    physics_error = None
+    """Always None: faults on hardware raise instead (see the README's safety table)."""
+
     def __init__(self, control_frequency: float = 250.0, board: str = SIMULATED,
                  plant: dict[str, float] | None = None, realtime: bool | None = None,
                  max_voltage: float = 10.0, reset_voltage_limit: float = DEFAULT_RESET_VOLTAGE_LIMIT,

@@ -59,7 +59,9 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
 
     ## Info
     `time` (s) and `voltage` (V, as applied) of each world, `target` (rad) in follow
-    tasks, each with Gymnasium's `_key` mask.
+    tasks, each with Gymnasium's `_key` mask; in a step where the simulation of some
+    worlds diverged, `physics_error` (bool per world) marks them: each such world
+    terminates with reward 0 and the observation of its state before that step.
 
     Args:
         task: suite task name, e.g. "swingup".
@@ -166,12 +168,17 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         batch, task = self._batch, self._task
         batch.step(volts)
         self._step_counts += 1
+        diverged = batch.diverged
         if restarting is not None:
+            diverged = diverged & ~restarting
             for world in np.flatnonzero(restarting).tolist():
                 self._start(world)
         task.after_step(batch)
         rewards = task.get_reward(batch)
         terminated = ~task.in_safe_set(batch)
+        if diverged.any():
+            rewards[diverged] = 0.0
+            terminated |= diverged
         truncated = self._step_counts >= self._steps_per_episode
         truncated &= ~terminated
         if restarting is not None:
@@ -180,8 +187,12 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         self._ended = terminated | truncated
         observations = self._observations()
         info = self._info()
+        if diverged.any():
+            info["physics_error"], info["_physics_error"] = diverged, diverged
         if self.autoreset_mode is AutoresetMode.SAME_STEP and self._ended.any():
             observations, info = self._restart_ended(observations, info)
+            if diverged.any():  # in final_info, and here too, as in the other modes
+                info["physics_error"], info["_physics_error"] = diverged, diverged
         return observations, rewards, terminated, truncated, info
 
     def close_extras(self, **kwargs) -> None:
