@@ -43,6 +43,10 @@ class QubePhysics(Protocol):
     def voltage(self) -> float:
         """Motor voltage (V) applied since the last `set_voltage`."""
 
+    def applied_voltage(self) -> float:
+        """Motor voltage (V) the motor receives: the command after actuator effects (and, on
+        hardware, the board wrapper's clip)."""
+
     def set_voltage(self, volts: float) -> None:
         """Apply a motor voltage (V); callers have validated and limited it."""
 

@@ -143,6 +143,10 @@ class Physics(dm_mujoco.Physics):
         """Motor voltage (V) commanded by the last `set_voltage`."""
         return self._voltage
 
+    def applied_voltage(self) -> float:
+        """Motor voltage (V) the simulated motor receives: the command after actuator effects."""
+        return float(self._ctrl[0])
+
     def set_voltage(self, volts: float) -> None:
         """Command `volts` to the motor until the next call."""
         self._voltage = volts
