@@ -49,7 +49,13 @@ class Environment(control.Environment):
       safety stop) ends the episode, so the next `step` resets;
     * the LED shows each step's reward (green high, red low);
     * with a randomization, every reset first draws the episode's parameters and
-      effects from the task's random state (`randomization_sample`).
+      effects from the task's random state (`randomization_sample`);
+    * `reset(seed=s)` reseeds the task's random state first (same seed, same
+      episode), as Gymnasium's `reset(seed=...)` does;
+    * objects in `observers` are told of every episode start and step (e.g. a
+      `qube_suite.recording.Recorder`): `episode_started(environment)` and
+      `step_done(environment, action, reward, discount)`, discount None while the
+      episode goes on.
 
     Args:
         physics: a Qube domain (`qube_suite.domains.interface.QubePhysics`) whose
@@ -70,6 +76,8 @@ class Environment(control.Environment):
         self._randomizer = None if randomization is None else randomization_.Randomizer(
             randomization_.load(randomization), physics, 1.0 / self._control_frequency)
         self._randomization_sample = None
+        self._episode_seed: int | None = None
+        self.observers: list = []
 
     @property
     def control_frequency(self) -> float:
@@ -98,6 +106,11 @@ class Environment(control.Environment):
         return self._physics.physics_error
 
     @property
+    def episode_seed(self) -> int | None:
+        """The seed the current episode's reset was given, or None (the task's random state went on)."""
+        return self._episode_seed
+
+    @property
     def randomization(self) -> randomization_.Randomization | None:
         """The randomization drawn from at every reset, or None."""
         return None if self._randomizer is None else self._randomizer.config
@@ -108,22 +121,27 @@ class Environment(control.Environment):
         or None without randomization."""
         return self._randomization_sample
 
-    def reset(self) -> dm_env.TimeStep:
-        """Start a new episode and return its first `TimeStep`."""
-        self.start_episode()
+    def reset(self, seed: int | None = None) -> dm_env.TimeStep:
+        """Start a new episode and return its first `TimeStep`; `seed` reseeds the task first."""
+        self.start_episode(seed)
         return dm_env.restart(self._task.get_observation(self._physics))
 
-    def start_episode(self) -> None:
+    def start_episode(self, seed: int | None = None) -> None:
         """Start a new episode without building a `TimeStep`: the core that `reset` and the
-        Gymnasium view share."""
+        Gymnasium view share. `seed`: reseed the task's random state first."""
         self._reset_next_step = True  # until the episode has started
         self._step_count = 0
+        if seed is not None:
+            self._task.random.seed(seed)
+        self._episode_seed = seed
         if self._randomizer is not None:
             self._randomization_sample = self._randomizer.start_episode(self._task.random)
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics)
         self._physics.set_led(reward_colour(self._task.get_reward(self._physics)))
         self._reset_next_step = False
+        for observer in self.observers:
+            observer.episode_started(self)
 
     def step(self, action) -> dm_env.TimeStep:
         """Apply `action` for one control period and return the resulting `TimeStep`."""
@@ -154,6 +172,8 @@ class Environment(control.Environment):
         if physics.physics_error is not None:
             self._reset_next_step = True
             physics.end_episode()
+            for observer in self.observers:
+                observer.step_done(self, action, 0.0, 0.0)
             return 0.0, 0.0
         task.after_step(physics)
         reward = task.get_reward(physics)
@@ -164,6 +184,8 @@ class Environment(control.Environment):
         if discount is not None:
             self._reset_next_step = True
             physics.end_episode()
+        for observer in self.observers:
+            observer.step_done(self, action, reward, discount)
         return reward, discount
 
     def close(self) -> None:

@@ -117,9 +117,7 @@ class QubeEnv(gymnasium.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Start an episode; `seed` reseeds the task's random state (same seed, same episode)."""
         super().reset(seed=seed)
-        if seed is not None:
-            self.environment.task.random.seed(seed)
-        self.environment.start_episode()
+        self.environment.start_episode(seed)
         if self.render_mode == "human":
             self.render()
         info = self._info()
