@@ -65,6 +65,26 @@ def test_refused_gymnasium_action_changes_nothing(action):
     assert info["time"] == pytest.approx(0.008) and not (terminated or truncated)
 
 
+@pytest.mark.parametrize("actions", [np.array([[np.nan], [0.0]]), np.zeros((2, 2)), [["1"], ["2"]], None,
+                                     np.array([[True], [False]])], ids=repr)
+def test_refused_vector_action_changes_nothing_in_any_world(actions):
+    def make():
+        env = gymnasium.make_vec("QubeSuite/SwingupFollow-v0", num_envs=2)
+        env.reset(seed=3)
+        env.step(np.ones((2, 1), np.float32))
+        return env
+
+    env, twin = make(), make()
+    randoms = [random.get_state()[1].copy() for random in env.unwrapped.task.random]
+    with pytest.raises(ValueError):
+        env.step(actions)
+    for random, before in zip(env.unwrapped.task.random, randoms, strict=True):
+        np.testing.assert_array_equal(random.get_state()[1], before)
+    for _ in range(30):
+        action = np.full((2, 1), 2.0, np.float32)
+        np.testing.assert_array_equal(env.step(action)[0], twin.step(action)[0])
+
+
 @pytest.mark.parametrize("action", [np.array([np.nan]), np.zeros(2), "1.0", None])
 def test_refused_action_on_hardware_never_reaches_the_board(action):
     with suite.load("qube_hardware", "swingup", task_kwargs={"random": 0},

@@ -135,7 +135,7 @@ class QubeEnv(gymnasium.Env):
         if self.render_mode == "human":
             self.render()
         info = self._info()
-        if self.environment.physics_error is not None:
+        if terminated and self.environment.physics_error is not None:
             info["physics_error"] = self.environment.physics_error
         return self._observation(), reward, terminated, truncated, info
 
