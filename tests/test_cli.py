@@ -139,4 +139,7 @@ def test_bench_quick_prints_one_table_with_ratios(capsys):
         assert name in rows, name
         assert float(rows[name].split()[len(name.split())].replace(",", "")) > 0  # the best rate
     assert "%" in rows["qube_suite vector env, N=16"]  # share of the raw rollout limit
-    assert "to fill" in rows["reset: qube_suite Gymnasium (Swingup-v0)"]  # the randomization column
+    for name in ("reset: qube_suite Gymnasium (Swingup-v0)", "reset: qube_suite vector env, N=16 (per world)",
+                 "qube_suite vector env, N=16"):
+        assert rows[name].endswith("×)")  # the randomization column: the sim2real rate and its ratio
+    assert "qube_suite vector env, N=16, sim2real" in rows

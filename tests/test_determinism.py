@@ -48,9 +48,11 @@ def test_gymnasium_same_seed_same_trajectory_and_draws(preset):
     assert drawn == drawn_again
 
 
-def test_vector_env_same_seed_same_trajectory():
+@pytest.mark.parametrize("preset", [None, *randomization.PRESETS])
+def test_vector_env_same_seed_same_trajectory(preset):
     def run(seed):
-        env = gymnasium.make_vec("QubeSuite/SwingupFollow-v0", num_envs=4, time_limit=0.1)
+        env = gymnasium.make_vec("QubeSuite/SwingupFollow-v0", num_envs=4, time_limit=0.1,
+                                 randomization=preset)
         observations, _ = env.reset(seed=seed)
         rows = [observations]
         for action in ACTIONS[:60]:

@@ -72,16 +72,21 @@ def test_gymnasium_terminates_with_physics_error_in_info():
     assert not terminated and "physics_error" not in info and np.isfinite(observation).all()
 
 
-@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
-def test_vector_env_flags_the_diverged_world_and_the_others_go_on(mode):
+JITTER = {"effects": {"control_jitter": {"fraction": 0.2}}}
+
+
+@pytest.mark.parametrize("mode, randomization", [("NextStep", None), ("SameStep", None),
+                                                 ("NextStep", JITTER)])
+def test_vector_env_flags_the_diverged_world_and_the_others_go_on(mode, randomization):
     unstable_worlds = {1}
 
     def hook(batch, world, random):
         batch.set_parameters(world, UNSTABLE if world in unstable_worlds else {})
 
-    vector = gymnasium.make_vec("QubeSuite/Swingup-v0", num_envs=3, reset_hook=hook, autoreset_mode=mode)
+    vector = gymnasium.make_vec("QubeSuite/Swingup-v0", num_envs=3, reset_hook=hook, autoreset_mode=mode,
+                                randomization=randomization)
     observations, _ = vector.reset(seed=[4, 5, 6])
-    single = gymnasium.make("QubeSuite/Swingup-v0")
+    single = gymnasium.make("QubeSuite/Swingup-v0", randomization=randomization)
     single.reset(seed=6)
     action = np.full((3, 1), 1.5, np.float32)
     after, rewards, terminated, truncated, info = vector.step(action)

@@ -291,7 +291,7 @@ class Physics(dm_mujoco.Physics):
 
     def _step_for(self, duration: float) -> None:
         nominal_timestep = self._options.timestep
-        nstep = max(1, math.ceil(duration / MAX_TIMESTEP - 1e-9))
+        nstep = physics_steps(duration)
         self._options.timestep = duration / nstep
         try:
             mujoco.mj_step(self._model_ptr, self._data_ptr, nstep)
@@ -383,6 +383,14 @@ def write_parameters(model: mujoco.MjModel, data: mujoco.MjData,
 def substeps_per_control_period(control_frequency: float) -> int:
     """Physics steps per control period so that the timestep is at most MAX_TIMESTEP."""
     return max(1, math.ceil(1.0 / (control_frequency * MAX_TIMESTEP) - 1e-9))
+
+
+def physics_steps(duration: float | np.ndarray) -> int | np.ndarray:
+    """Fewest equal physics steps covering `duration` (s; or an array of durations) with timesteps of at
+    most MAX_TIMESTEP; the timestep is then `duration / physics_steps(duration)`."""
+    if isinstance(duration, np.ndarray):
+        return np.maximum(1, np.ceil(duration / MAX_TIMESTEP - 1e-9)).astype(np.intp)
+    return max(1, math.ceil(duration / MAX_TIMESTEP - 1e-9))
 
 
 def physics_timestep(control_frequency: float) -> float:
