@@ -146,8 +146,7 @@ def _make_policy(args: argparse.Namespace, environment: Any) -> tuple[Any, str]:
 
 
 def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
-    """Files written about the episodes. (Recording episodes, `--record`, belongs here and in
-    `_write_outputs`.)"""
+    """Files written about the episodes."""
     outputs = parser.add_argument_group("outputs")
     outputs.add_argument("--video", metavar="FILE.mp4",
                          help="film the episodes into one mp4 (needs the media extra; rendering without "
@@ -162,11 +161,16 @@ def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
     outputs.add_argument("--plot", metavar="FILE.png",
                          help="plot the first episode: states, voltage, reward and LED over time "
                               "(needs the media extra)")
+    outputs.add_argument("--record", metavar="FILE.jsonl",
+                         help="record every step (time, state, observation, action, voltages, reward, "
+                              "LED; raw board readings on qube_hardware) as JSON lines, written as the "
+                              "episodes run, so a crash loses at most the last step; read it with "
+                              "qube_suite.recording.load_recording")
 
 
 def _check_output_paths(args: argparse.Namespace) -> None:
     """Fail before any episode runs if an output file's folder does not exist."""
-    for option in ("video", "plot"):
+    for option in ("video", "plot", "record"):
         path = getattr(args, option)
         if path and not pathlib.Path(path).resolve().parent.is_dir():
             raise ValueError(f"--{option} {path}: the folder {pathlib.Path(path).parent} does not exist")
@@ -187,8 +191,21 @@ def _video_recorder(args: argparse.Namespace, environment: Any):
     return recorder
 
 
+def _recorder(args: argparse.Namespace, environment: Any, policy_name: str):
+    """The episode recorder the arguments ask for, observing `environment`; None without --record."""
+    if args.record is None:
+        return None
+    from qube_suite import recording
+
+    return recording.Recorder(args.record, environment, metadata={
+        "domain": args.domain, "task": args.task, "policy": policy_name, "randomization": args.randomization,
+        "board": args.board, "realtime": args.realtime})
+
+
 def _write_outputs(args: argparse.Namespace, traces: list) -> None:
-    """Write the files the arguments ask for from the episodes' traces."""
+    """Write the files the arguments ask for from the episodes' traces; say where recordings went."""
+    if args.record:
+        print(f"recording of {len(traces)} episode(s) written to {args.record}")
     if args.plot:
         from qube_suite import plotting
 
@@ -211,10 +228,11 @@ def _run(args: argparse.Namespace) -> int:
         domain_kwargs["board"] = args.board
     environment = suite.load(args.domain, args.task, task_kwargs={"random": args.seed},
                              randomization=args.randomization, domain_kwargs=domain_kwargs)
-    policy, recorder = None, None
+    policy, recorder, episode_recorder = None, None, None
     try:
         policy, name = _make_policy(args, environment)
         recorder = _video_recorder(args, environment)
+        episode_recorder = _recorder(args, environment, name)
         hooks = [recorder] if recorder is not None else []
         if args.realtime and args.domain not in REALTIME_DOMAIN_KWARGS:
             hooks.append(RealtimePacer())
@@ -223,9 +241,9 @@ def _run(args: argparse.Namespace) -> int:
                   desc=f"{name} on {args.domain}/{args.task}") as bar:
             for episode in range(args.episodes):
                 seed = args.seed + episode
-                environment.task.random.seed(seed)
                 trace = episodes.run_episode(environment, policy, [ProgressHook(bar), *hooks],
-                                             label=f"{name} on {args.domain}/{args.task}, seed {seed}")
+                                             label=f"{name} on {args.domain}/{args.task}, seed {seed}",
+                                             seed=seed)
                 traces.append(trace)
                 bar.update((episode + 1) * environment.episode_steps - bar.n)  # an early end skips ahead
                 end = "terminated" if trace.terminated else "time limit"
@@ -234,6 +252,8 @@ def _run(args: argparse.Namespace) -> int:
     finally:
         if recorder is not None:
             recorder.close()
+        if episode_recorder is not None:
+            episode_recorder.close()
         if hasattr(policy, "close"):
             policy.close()
         environment.close()
@@ -254,6 +274,7 @@ def _add_run(commands) -> None:
                "  qube-suite run --task swingup --controller mpc --plot swingup.png\n"
                "  qube-suite run --task balance --controller balance --episodes 3 --randomization mild\n"
                "  qube-suite run --task swingup --controller mpc --video swingup.mp4 --fps 30\n"
+               "  qube-suite run --task balance --controller balance --record balance.jsonl\n"
                "  qube-suite run --domain qube_hardware --task balance --controller balance --realtime\n"
                "  qube-suite run --domain qube_hardware --board qube_servo2_usb --task balance "
                "--controller balance",

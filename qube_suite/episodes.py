@@ -90,7 +90,7 @@ class _Readings:
 
 
 def run_episode(environment: Any, policy: Policy, hooks: Iterable[StepHook] = (),
-                label: str = "") -> EpisodeTrace:
+                label: str = "", seed: int | None = None) -> EpisodeTrace:
     """Reset `environment` (a qube_suite dm_env environment), run `policy` to the episode's end,
     and return the trace.
 
@@ -101,12 +101,14 @@ def run_episode(environment: Any, policy: Policy, hooks: Iterable[StepHook] = ()
         hooks: each called as `hook(step, environment)` after the reset (step 0) and
             after every control step, e.g. to render frames or keep to real time.
         label: stored in the trace.
+        seed: reseed the task's random state at the reset (`environment.reset(seed=...)`); None:
+            go on from its present state.
     """
     hooks = tuple(hooks)
     if hasattr(policy, "reset"):
         policy.reset()
     readings = _Readings(environment)
-    timestep = environment.reset()
+    timestep = environment.reset() if seed is None else environment.reset(seed=seed)
     readings.read(math.nan)
     for hook in hooks:
         hook(0, environment)

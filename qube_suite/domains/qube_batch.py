@@ -73,7 +73,7 @@ class QubeBatch:
     UNMODELLED_PARAMETERS = qube.Physics.UNMODELLED_PARAMETERS
 
     def __init__(self, num_worlds: int, control_frequency: float = 250.0, threads: int | None = None):
-        if not (isinstance(num_worlds, int) and num_worlds >= 1):
+        if not (isinstance(num_worlds, int) and not isinstance(num_worlds, bool) and num_worlds >= 1):
             raise ValueError(f"num_worlds must be a positive integer, got {num_worlds!r}")
         template = physics_model(control_frequency)
         self.num_worlds = num_worlds
@@ -85,6 +85,8 @@ class QubeBatch:
 
         if threads is None:
             threads = os.cpu_count() or 1
+        if not (isinstance(threads, int) and not isinstance(threads, bool) and threads >= 0):
+            raise ValueError(f"threads must be a non-negative integer or None, got {threads!r}")
         if num_worlds < MIN_WORLDS_PER_THREAD * threads:
             threads = 0
         self._pool = mujoco.rollout.Rollout(nthread=threads)
@@ -103,6 +105,8 @@ class QubeBatch:
         self._trajectory = np.empty((num_worlds, self._substeps, start.size))
         self._control = np.zeros((num_worlds, self._substeps, template.nu))
         self._voltage = np.zeros(num_worlds)
+        self.diverged = np.zeros(num_worlds, dtype=bool)
+        """Which worlds' simulation diverged in the last `step` (that step was undone for them)."""
         self._worlds = np.arange(num_worlds)
         self._nominal_durations = np.full(num_worlds, self._substeps * template.opt.timestep)
         """Each world's control period as the physics steps cover it (s)."""
@@ -147,7 +151,9 @@ class QubeBatch:
         """Hold `volts` (V, one per world, already validated and limited) for one control period.
 
         All worlds advance in one rollout call (with a step-duration model, one per number of
-        physics steps); then they are measured.
+        physics steps); then they are measured. A world whose simulation diverges (speeds
+        beyond `qube.MAX_PLAUSIBLE_SPEED`, inf or NaN) goes back to its state before the
+        step, its time advanced, and is marked in `diverged`.
         """
         self._voltage = volts
         motor = volts if self._actuator_model is None else self._actuator_model(volts)
@@ -155,9 +161,13 @@ class QubeBatch:
             self._control[:, :, 0] = motor[:, None]
             self._pool.rollout(self._models, self._datas, self._state, self._control, control_spec=_CONTROL,
                                skip_checks=True, nstep=self._substeps, state=self._trajectory)
-            self._state[:] = self._trajectory[:, -1]
+            end = self._trajectory[:, -1]
+            self._undo_diverged(end, self._state)
+            self._state[:] = end
         else:
+            before = self._state.copy()
             self._step_for(self._step_duration_model(self._nominal_durations), motor)
+            self._undo_diverged(self._state, before)
         self._measure()
 
     def reset_world(self, world: int, state: Sequence[float]) -> None:
@@ -243,6 +253,14 @@ class QubeBatch:
         self._pool.close()
 
     # -- helpers ------------------------------------------------------------------------
+
+    def _undo_diverged(self, after: np.ndarray, before: np.ndarray) -> None:
+        """Mark in `diverged` the worlds whose states `after` a step are implausible and give them
+        back their positions and velocities `before` it (their time stays advanced)."""
+        speeds = np.abs(after[:, self._dtheta]) + np.abs(after[:, self._dalpha])
+        self.diverged = ~(speeds < qube.MAX_PLAUSIBLE_SPEED)  # also catches inf and NaN
+        if self.diverged.any():
+            after[self.diverged, 1:] = before[self.diverged, 1:]
 
     def _own_model(self, world: int) -> mujoco.MjModel:
         """`world`'s model, copied from the shared one the first time it needs its own."""

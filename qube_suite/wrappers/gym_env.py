@@ -57,11 +57,14 @@ class QubeEnv(gymnasium.Env):
 
     ## Episode end
     `terminated` when the task's safe set is left (arm beyond +-90 degrees, and in
-    balance tasks the pendulum beyond +-20 degrees); `truncated` at the time limit.
-    Stepping after either without `reset()` raises RuntimeError.
+    balance tasks the pendulum beyond +-20 degrees), or when the simulation
+    diverged (reward 0, `info["physics_error"]`); `truncated` at the time limit.
+    Stepping after either, or after a step that raised (e.g. a hardware safety
+    stop), without `reset()` raises RuntimeError.
 
     ## Info
-    `time` (s), `voltage` (V, as commanded after clipping), `target` (rad, follow tasks).
+    `time` (s), `voltage` (V, as commanded after clipping), `target` (rad, follow tasks),
+    and `physics_error` (a message) in the step where the simulation diverged.
     With a randomization, `reset` adds what the episode drew: `parameters` (name ->
     value of each randomized physical parameter) and `effects` (effect name ->
     settings).
@@ -94,7 +97,6 @@ class QubeEnv(gymnasium.Env):
         self._frames = FrameRenderer(camera, int(width), int(height)) if render_mode == "rgb_array" else None
         self._viewer = None
         self._closed = False
-        self._episode_over = True
         self._follows_target = getattr(environment.task, "follows_target", False)
         self.metadata = {
             "render_modes": [mode for mode in RENDER_MODES if mode != "human" or display_available()],
@@ -115,10 +117,7 @@ class QubeEnv(gymnasium.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Start an episode; `seed` reseeds the task's random state (same seed, same episode)."""
         super().reset(seed=seed)
-        if seed is not None:
-            self.environment.task.random.seed(seed)
-        self.environment.start_episode()
-        self._episode_over = False
+        self.environment.start_episode(seed)
         if self.render_mode == "human":
             self.render()
         info = self._info()
@@ -128,15 +127,17 @@ class QubeEnv(gymnasium.Env):
         return self._observation(), info
 
     def step(self, action):
-        if self._episode_over:
+        if self.environment.needs_reset:
             raise RuntimeError("the episode has ended; call reset() before step()")
         reward, discount = self.environment.advance(action)
         terminated = discount == 0.0
         truncated = discount == 1.0
-        self._episode_over = discount is not None
         if self.render_mode == "human":
             self.render()
-        return self._observation(), reward, terminated, truncated, self._info()
+        info = self._info()
+        if terminated and self.environment.physics_error is not None:
+            info["physics_error"] = self.environment.physics_error
+        return self._observation(), reward, terminated, truncated, info
 
     def render(self):
         if self.render_mode == "rgb_array":

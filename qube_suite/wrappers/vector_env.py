@@ -12,6 +12,7 @@ from gymnasium.vector.utils import batch_space
 
 from qube_suite import randomization as randomization_
 from qube_suite import suite
+from qube_suite.arguments import check_keywords, keywords_of
 from qube_suite.domains.qube_batch import QubeBatch
 from qube_suite.environment import DEFAULT_CONTROL_FREQUENCY, DEFAULT_TIME_LIMIT, episode_steps
 from qube_suite.wrappers.gym_env import action_space, observation_space
@@ -73,7 +74,10 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
     at `step`) add what they drew, as their single environment's reset info does:
     `parameters` (name -> array over worlds) and `effects` (effect name -> setting ->
     array), nested in Gymnasium's vector-info convention (what `SyncVectorEnv` gives)
-    with masks `_parameters`, `_effects` and inner ones marking those worlds.
+    with masks `_parameters`, `_effects` and inner ones marking those worlds. In a
+    step where the simulation of some worlds diverged, `physics_error` (bool per
+    world) marks them: each such world terminates with reward 0 and the observation
+    of its state before that step.
 
     Args:
         task: suite task name, e.g. "swingup".
@@ -98,6 +102,13 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
                  render_mode: str | None = None, **task_kwargs):
         if render_mode is not None:
             raise ValueError("the vector environment does not render; make a single environment to watch one")
+        if not (isinstance(num_envs, int) and not isinstance(num_envs, bool) and num_envs >= 1):
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        check_keywords(task_kwargs, keywords_of(QubeVectorEnv, skip=("task", "num_envs")) + suite.TASK_KWARGS,
+                       f"keyword arguments for the vector environment of {task!r}")
+        modes = [mode.value for mode in AutoresetMode]
+        if autoreset_mode not in [*AutoresetMode, *modes]:
+            raise ValueError(f"unknown autoreset_mode {autoreset_mode!r}; valid: {', '.join(modes)}")
         self.autoreset_mode = AutoresetMode(autoreset_mode)
         seed = task_kwargs.pop("random", None)
         if not (seed is None or isinstance(seed, int)):
@@ -181,10 +192,14 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         batch, task = self._batch, self._task
         batch.step(volts)
         self._step_counts += 1
+        diverged = batch.diverged if restarting is None else batch.diverged & ~restarting
         draws = {} if restarting is None else self._start(np.flatnonzero(restarting))
         task.after_step(batch)
         rewards = task.get_reward(batch)
         terminated = ~task.in_safe_set(batch)
+        if diverged.any():
+            rewards[diverged] = 0.0
+            terminated |= diverged
         truncated = self._step_counts >= self._steps_per_episode
         truncated &= ~terminated
         if restarting is not None:
@@ -193,8 +208,12 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         self._ended = terminated | truncated
         observations = self._observations()
         info = self._with_draws(self._info(), draws)
+        if diverged.any():
+            info["physics_error"], info["_physics_error"] = diverged, diverged
         if self.autoreset_mode is AutoresetMode.SAME_STEP and self._ended.any():
             observations, info = self._restart_ended(observations, info)
+            if diverged.any():  # in final_info, and here too, as in the other modes
+                info["physics_error"], info["_physics_error"] = diverged, diverged
         return observations, rewards, terminated, truncated, info
 
     def close_extras(self, **kwargs) -> None:
