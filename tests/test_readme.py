@@ -26,7 +26,8 @@ def test_two_setup_commands():
 
 
 @pytest.mark.parametrize("index", range(len(PYTHON_BLOCKS)))
-def test_python_example_runs(index):
+def test_python_example_runs(index, monkeypatch, tmp_path):
+    monkeypatch.chdir(tmp_path)  # files the examples write land here
     code = PYTHON_BLOCKS[index]
     if "render" in code and not OFFSCREEN_GL:
         pytest.skip("offscreen rendering needs OSMesa (apt-get install libosmesa6)")
