@@ -1,101 +1,104 @@
-"""Every controller on every task it is meant for: return, success rate and compute per step.
+"""Every controller on every task it is meant for, in simulation and on the hardware path.
 
 Runs each controller of `qube_suite.baselines.CONTROLLERS` on each task in its
-`tasks` on the nominal simulated Qube (`qube` domain, 250 Hz, 3 V), one seeded
-episode per seed, and prints per (controller, task):
+`tasks`, on the `qube` (MuJoCo) and `qube_hardware` (substitute board) domains at
+250 Hz and 3 V, with `qube_suite.evaluate` (seeds 0 .. episodes-1; the controller
+built by `baselines.for_environment`, so it knows the domain's latency), and
+prints a markdown table with a row per (controller, task) and, for each domain:
 
-* return: mean and standard deviation over the episodes;
-* success: the fraction of episodes that end without termination with the
-  pendulum within 10 degrees of its goal (upright, or hanging for dampen) for
-  the final 2 s; for rotor, with at least 5 net revolutions;
-* compute per control step (ms), timed around the controller call only, over all
-  steps and over the steps with the pendulum more than 20 degrees from upright
-  (swinging, where the MPC plans; upright it hands over to its LQR): the median
-  and 99th percentile of wall-clock time, and the 99th percentile of the
-  thread's CPU time. On a shared machine the wall-clock tail includes the time
+* return: mean and standard deviation over the episodes (rotor: revolutions, "rev.");
+* success: the fraction of episodes meeting `qube_suite.evaluation`'s rule: no
+  termination and the pendulum within 10 degrees of its goal (upright, or
+  hanging for dampen) for the final 2 s; for rotor, at least 5 revolutions;
+* compute per control step (ms): median and 99th percentile of the wall-clock
+  time of the controller call, and the 99th percentile of the calling thread's
+  CPU time during it. On a shared machine the wall-clock tail includes the time
   other processes hold the CPU; the CPU time does not.
 
-    python benchmarks/controllers.py [--episodes 20] [--controllers swingup mpc] [--tasks swingup]
+With `--readme README.md` the table replaces what is between the README's
+`<!-- results:begin -->` and `<!-- results:end -->` markers.
+
+    python benchmarks/controllers.py [--episodes 20] [--domains qube qube_hardware]
+        [--controllers swingup mpc] [--tasks swingup] [--readme README.md]
 """
 
 from __future__ import annotations
 
 import argparse
-import math
-import time
+import pathlib
+import re
+import sys
 
 import numpy as np
 
-from qube_suite import baselines, suite
+from qube_suite import baselines, evaluate, suite
+from qube_suite.evaluation import EvaluationResult
 
-SETTLE_TIME = 2.0
-"""Success needs the pendulum at its goal for the final 2 s ..."""
-GOAL_ANGLE = math.radians(10.0)
-"""... within 10 degrees."""
-ROTOR_REVOLUTIONS = 5
-"""Success on rotor: at least this many net revolutions."""
-SWINGING = math.radians(20.0)
-"""Steps with |alpha| beyond this count as swinging for the last compute column."""
+BEGIN, END = "<!-- results:begin -->", "<!-- results:end -->"
+"""The README's markers around the generated table."""
 
 
-def episode(controller, task: str, seed: int) -> tuple[float, bool, np.ndarray, np.ndarray]:
-    """(return, success, [wall-clock, CPU] time of each step's call (s, N x 2), whether swinging (N))."""
-    env = suite.load("qube", task, task_kwargs={"random": seed})
-    controller.reset()
-    timestep = env.reset()
-    episode_return, at_goal_since, times, swinging = 0.0, None, [], []
-    while not timestep.last():
-        wall, cpu = time.perf_counter(), time.thread_time()
-        volts = controller(timestep.observation)
-        times.append((time.perf_counter() - wall, time.thread_time() - cpu))
-        swinging.append(abs(timestep.observation["state"][1]) > SWINGING)
-        timestep = env.step(volts)
-        episode_return += timestep.reward
-        if task != "rotor" and abs(env.task.pendulum_error(env.physics)) >= GOAL_ANGLE:
-            at_goal_since = None
-        elif task != "rotor" and at_goal_since is None:
-            at_goal_since = env.physics.time()
-    completed = env.step_count == env.episode_steps
-    if task == "rotor":
-        success = completed and env.task.revolutions >= ROTOR_REVOLUTIONS
-    else:
-        success = completed and at_goal_since is not None and \
-            env.physics.time() - at_goal_since >= SETTLE_TIME - 1e-9
-    return episode_return, success, np.array(times), np.array(swinging)
+def score(result: EvaluationResult) -> str:
+    """Return and success cells of `result`."""
+    unit = " rev." if result.task == "rotor" else ""
+    return f"{result.mean_return:.0f} ± {result.std_return:.0f}{unit} | {100 * result.success_rate:.0f} %"
 
 
-def statistics(times: np.ndarray) -> str:
-    """Median and p99 wall-clock and p99 CPU time (ms) of [wall, cpu] rows, formatted."""
-    if not times.size:
-        return f"{'-':>9s} {'-':>7s} {'-':>7s}"
-    return (f"{np.median(times[:, 0]):9.3f} {np.percentile(times[:, 0], 99):7.3f} "
-            f"{np.percentile(times[:, 1], 99):7.3f}")
+def compute(result: EvaluationResult) -> str:
+    """Compute-per-step cell of `result`: wall-clock median / p99 (CPU p99), ms."""
+    times, cpu_times = result.step_times * 1e3, result.step_cpu_times * 1e3
+    return f"{np.median(times):.2f} / {np.percentile(times, 99):.2f} ({np.percentile(cpu_times, 99):.2f})"
+
+
+def table(results: dict[tuple[str, str], dict[str, EvaluationResult]], domains: list[str]) -> str:
+    """Markdown table: a row per (controller, task), return and success then compute per domain."""
+    header = ["controller", "task", *[f"{cell} `{d}`" for d in domains for cell in ("return", "success")],
+              *[f"ms per step `{d}`" for d in domains]]
+    lines = ["| " + " | ".join(header) + " |", "|---" * len(header) + "|"]
+    for (name, task), by_domain in results.items():
+        cells = [f"`{name}`", task, *[score(by_domain[d]) for d in domains],
+                 *[compute(by_domain[d]) for d in domains]]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def write_between_markers(path: pathlib.Path, text: str) -> None:
+    """Replace what is between `BEGIN` and `END` in the file at `path` with `text`."""
+    content = path.read_text()
+    pattern = re.compile(rf"{re.escape(BEGIN)}\n.*?{re.escape(END)}", re.S)
+    if not pattern.search(content):
+        raise ValueError(f"{path} lacks the markers {BEGIN} ... {END}")
+    path.write_text(pattern.sub(lambda _: f"{BEGIN}\n{text}\n{END}", content, count=1))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--episodes", type=int, default=20,
-                        help="seeds 0 .. episodes-1 per controller and task")
+    parser.add_argument("--episodes", type=int, default=20, help="seeds 0 .. episodes-1 per row")
+    parser.add_argument("--domains", nargs="*", default=list(suite.TASKS_BY_DOMAIN))
     parser.add_argument("--controllers", nargs="*", default=list(baselines.CONTROLLERS))
     parser.add_argument("--tasks", nargs="*", default=None, help="only these tasks")
+    parser.add_argument("--readme", type=pathlib.Path, default=None,
+                        help="write the table between the results markers of this file")
     args = parser.parse_args()
 
-    print(f"{'compute per step (ms):':>57s} {'all steps':^25s}   {'while swinging':^25s}")
-    print(f"{'controller':10s} {'task':22s} {'return':>15s} {'success':>7s} {'median':>9s} {'p99':>7s} "
-          f"{'p99 cpu':>7s}   {'median':>7s} {'p99':>7s} {'p99 cpu':>7s}")
+    results: dict[tuple[str, str], dict[str, EvaluationResult]] = {}
     for name in args.controllers:
-        controller = baselines.make(name)
-        for task in controller.tasks:
+        for task in baselines.CONTROLLERS[name].tasks:
             if args.tasks and task not in args.tasks:
                 continue
-            results = [episode(controller, task, seed) for seed in range(args.episodes)]
-            returns = np.array([r[0] for r in results])
-            times = np.concatenate([r[2] for r in results]) * 1e3
-            swinging = times[np.concatenate([r[3] for r in results])]
-            print(f"{name:10s} {task:22s} {returns.mean():7.1f} ± {returns.std():5.1f} "
-                  f"{np.mean([r[1] for r in results]):7.2f} {statistics(times)}   {statistics(swinging)}",
-                  flush=True)
-        controller.close()
+            for domain in args.domains:
+                result = evaluate(name, domain=domain, task=task, episodes=args.episodes)
+                results.setdefault((name, task), {})[domain] = result
+                print(f"{domain:14s} {name:8s} {task:22s} {score(result)} | {compute(result)} ms", flush=True)
+    text = table(results, args.domains)
+    print(text)
+    if args.readme is not None:
+        command = " ".join(["python", "benchmarks/controllers.py", *sys.argv[1:]])
+        note = (f"Generated by `{command}`: {args.episodes} episodes per cell (seeds 0 to "
+                f"{args.episodes - 1}), 250 Hz, 3 V. Compute per step: wall-clock median / p99 "
+                f"(p99 of the thread's CPU time), ms.")
+        write_between_markers(args.readme, "\n".join([note, "", text]))
+        print(f"table written to {args.readme}")
 
 
 if __name__ == "__main__":

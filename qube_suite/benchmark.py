@@ -5,8 +5,10 @@ measurements taking turns in each round, so that load from other processes on a
 shared machine falls on all of them alike; a row reports its best round (and the
 median). Ratios compare rows of the same run. Single environments are stepped with
 a zero action; the time of their resets is left out of the step rows (a reset row
-measures it). Add a row by appending a `Measurement` to the list `measurements()`
-returns.
+measures it). Rows ending in the name of a randomization preset measure the same
+with that randomization (drawn at every reset, effects at every step); the column
+"with randomization" repeats their rate beside the plain row's, with the ratio.
+Add a row by appending a `Measurement` to the list `measurements()` returns.
 """
 
 from __future__ import annotations
@@ -19,14 +21,19 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+from tqdm import tqdm
 
 VECTOR_SIZES = (1, 4, 16, 64, 256, 1024)
+RANDOMIZED_SIZES = (64, 1024)
+"""Vector sizes also measured with randomization."""
+RANDOMIZATION = "sim2real"
+"""Preset of the randomized rows."""
 ROLLOUT_THREADS = 2
 PEER = "Gymnasium InvertedPendulum-v5 step"
 DM_PEER = "dm_control cartpole swingup step"
 PEER_RESET = "reset: Gymnasium InvertedPendulum-v5"
-RANDOMIZATION_PENDING = "to fill: suite.load rejects randomization"
-"""The reset rows' randomization column until `suite.load(..., randomization=...)` exists."""
+REAL_TIME = "reference: real time at 250 Hz (not measured)"
+REAL_TIME_FREQUENCY = 250.0
 
 
 @dataclasses.dataclass
@@ -42,6 +49,8 @@ class Measurement:
     """Row whose rate this one is divided by (×)."""
     limit: str | None = None
     """Row that bounds this one (shown as a percentage)."""
+    randomized: str | None = None
+    """Row measuring the same with randomization (shown in the randomization column)."""
 
 
 @dataclasses.dataclass
@@ -118,24 +127,45 @@ def _qube_dm_env():
     return suite.load("qube", "swingup", task_kwargs={"random": 0})
 
 
+def _hardware_dm_env():
+    from qube_suite import suite
+
+    return suite.load("qube_hardware", "swingup", task_kwargs={"random": 0})
+
+
+def _substitute_action() -> Callable[[int], float]:
+    """`QubeServo2.action` on the substitute board in its fast mode, kept open for the run."""
+    from qube_suite.hardware import QubeServo2
+
+    qube = QubeServo2(frequency=REAL_TIME_FREQUENCY)
+    qube.open()
+    volts = np.zeros(1)
+    return _repeated(lambda: qube.action(volts))
+
+
+def _real_time() -> Callable[[int], float]:
+    """Not a measurement: the rate a real board keeps, `REAL_TIME_FREQUENCY` samples per second."""
+    return lambda calls: calls / REAL_TIME_FREQUENCY
+
+
 def _cartpole():
     from dm_control import suite as dm_suite
 
     return dm_suite.load("cartpole", "swingup", task_kwargs={"random": 0})
 
 
-def _vector_env(num_envs: int):
+def _vector_env(num_envs: int, randomization: str | None = None):
     import gymnasium
 
     import qube_suite  # noqa: F401
 
     return gymnasium.make_vec("QubeSuite/Swingup-v0", num_envs=num_envs,
-                              vectorization_mode="vector_entry_point")
+                              vectorization_mode="vector_entry_point", randomization=randomization)
 
 
-def _vector_step(num_envs: int) -> Callable[[], Callable[[int], float]]:
+def _vector_step(num_envs: int, randomization: str | None = None) -> Callable[[], Callable[[int], float]]:
     def make():
-        env = _vector_env(num_envs)
+        env = _vector_env(num_envs, randomization)
         env.reset(seed=0)
         actions = np.zeros((num_envs, 1), np.float32)
         return _repeated(lambda: env.step(actions))
@@ -180,18 +210,20 @@ def _raw_rollout(num_worlds: int, control_steps: int = 1) -> Callable[[], Callab
     return make
 
 
-def _gymnasium_reset() -> Callable[[int], float]:
-    import gymnasium
-
-    import qube_suite  # noqa: F401
-
-    env = gymnasium.make("QubeSuite/Swingup-v0")
-    return _repeated(env.reset)
-
-
-def _vector_reset(num_envs: int) -> Callable[[], Callable[[int], float]]:
+def _gymnasium_reset(randomization: str | None = None) -> Callable[[], Callable[[int], float]]:
     def make():
-        return _repeated(_vector_env(num_envs).reset)
+        import gymnasium
+
+        import qube_suite  # noqa: F401
+
+        return _repeated(gymnasium.make("QubeSuite/Swingup-v0", randomization=randomization).reset)
+
+    return make
+
+
+def _vector_reset(num_envs: int, randomization: str | None = None) -> Callable[[], Callable[[int], float]]:
+    def make():
+        return _repeated(_vector_env(num_envs, randomization).reset)
 
     return make
 
@@ -203,16 +235,26 @@ def _peer_reset() -> Callable[[int], float]:
     return _repeated(env.reset)
 
 
-def measurements(vector_sizes=VECTOR_SIZES) -> list[Measurement]:
-    """The rows of the table, in order."""
+def measurements(vector_sizes=VECTOR_SIZES, randomized_sizes=RANDOMIZED_SIZES) -> list[Measurement]:
+    """The rows of the table, in order; `randomized_sizes` (among `vector_sizes`) also with randomization."""
+    single_step = "qube_suite Gymnasium step (Swingup-v0)"
+    single_reset = "reset: qube_suite Gymnasium (Swingup-v0)"
     rows = [
-        Measurement("qube_suite Gymnasium step (Swingup-v0)", _gymnasium_step("QubeSuite/Swingup-v0"),
-                    peer=PEER),
+        Measurement(single_step, _gymnasium_step("QubeSuite/Swingup-v0"), peer=PEER,
+                    randomized=f"{single_step}, {RANDOMIZATION}"),
+        Measurement(f"{single_step}, {RANDOMIZATION}",
+                    _gymnasium_step("QubeSuite/Swingup-v0", randomization=RANDOMIZATION), peer=single_step),
         Measurement("qube_suite dm_env step (swingup)", _dm_env_step(_qube_dm_env), peer=DM_PEER),
     ]
     for n in vector_sizes:
-        rows.append(Measurement(f"qube_suite vector env, N={n}", _vector_step(n), work=n, unit="env-steps",
-                                peer=PEER, limit=f"raw mujoco.rollout, {ROLLOUT_THREADS} threads, N={n}"))
+        name = f"qube_suite vector env, N={n}"
+        randomized = n in randomized_sizes
+        rows.append(Measurement(name, _vector_step(n), work=n, unit="env-steps", peer=PEER,
+                                limit=f"raw mujoco.rollout, {ROLLOUT_THREADS} threads, N={n}",
+                                randomized=f"{name}, {RANDOMIZATION}" if randomized else None))
+        if randomized:
+            rows.append(Measurement(f"{name}, {RANDOMIZATION}", _vector_step(n, RANDOMIZATION), work=n,
+                                    unit="env-steps", peer=name))
     rows += [
         Measurement(PEER, _gymnasium_step("InvertedPendulum-v5")),
         Measurement(DM_PEER, _dm_env_step(_cartpole)),
@@ -225,11 +267,24 @@ def measurements(vector_sizes=VECTOR_SIZES) -> list[Measurement]:
     rows += [
         Measurement(f"raw mujoco.rollout, {ROLLOUT_THREADS} threads, N={longest}, 100 steps a call",
                     _raw_rollout(longest, 100), work=100 * longest, unit="env-steps"),
-        Measurement("reset: qube_suite Gymnasium (Swingup-v0)", _gymnasium_reset, unit="resets",
-                    peer=PEER_RESET),
-        Measurement("reset: qube_suite vector env, N=64 (per world)", _vector_reset(64), work=64,
-                    unit="resets", peer=PEER_RESET),
+        Measurement(single_reset, _gymnasium_reset(), unit="resets", peer=PEER_RESET,
+                    randomized=f"{single_reset}, {RANDOMIZATION}"),
+        Measurement(f"{single_reset}, {RANDOMIZATION}", _gymnasium_reset(RANDOMIZATION), unit="resets",
+                    peer=single_reset),
+    ]
+    for n in randomized_sizes:
+        name = f"reset: qube_suite vector env, N={n} (per world)"
+        randomized = f"reset: qube_suite vector env, N={n}, {RANDOMIZATION} (per world)"
+        rows += [Measurement(name, _vector_reset(n), work=n, unit="resets", peer=PEER_RESET,
+                             randomized=randomized),
+                 Measurement(randomized, _vector_reset(n, RANDOMIZATION), work=n, unit="resets", peer=name)]
+    rows += [
         Measurement(PEER_RESET, _peer_reset, unit="resets"),
+        Measurement("hardware substitute: QubeServo2.action, fast mode", _substitute_action,
+                    unit="samples", peer=REAL_TIME),
+        Measurement("qube_suite dm_env step on qube_hardware (swingup, substitute)",
+                    _dm_env_step(_hardware_dm_env), peer=REAL_TIME),
+        Measurement(REAL_TIME, _real_time, unit="samples"),
     ]
     return rows
 
@@ -237,10 +292,17 @@ def measurements(vector_sizes=VECTOR_SIZES) -> list[Measurement]:
 # -- running and printing ----------------------------------------------------------------------
 
 
-def run(rows: list[Measurement], rounds: int, seconds: float) -> list[Result]:
-    """Build every row's subject, then run `rounds` interleaved rounds of about `seconds` each per row."""
+def run(rows: list[Measurement], rounds: int, seconds: float, progress: bool = False) -> list[Result]:
+    """Build every row's subject, then run `rounds` interleaved rounds of about `seconds` each per row.
+
+    `progress`: show a progress bar (tqdm, on stderr, on a terminal) over the rows' calibration and
+    the rounds.
+    """
+    bar = tqdm(total=len(rows) + rounds, unit="round", disable=None if progress else True, desc="benchmark",
+               leave=False)
     results, runners = [], []
     for row in rows:
+        bar.update()
         result = Result(row)
         try:
             runner = row.make()
@@ -255,6 +317,8 @@ def run(rows: list[Measurement], rounds: int, seconds: float) -> list[Result]:
     for _ in range(rounds):
         for result, runner, calls in runners:
             result.rates.append(calls * result.measurement.work / runner(calls))
+        bar.update()
+    bar.close()
     return results
 
 
@@ -273,7 +337,8 @@ def table(results: list[Result]) -> str:
         peer, limit = by_name.get(row.peer), by_name.get(row.limit)
         ratio = f"{best / peer.best:.2f}" if peer and peer.rates else ""
         share = f"{100 * best / limit.best:.0f} %" if limit and limit.rates else ""
-        randomized = RANDOMIZATION_PENDING if row.unit == "resets" else ""
+        twin = by_name.get(row.randomized)
+        randomized = f"{twin.best:,.0f} ({twin.best / best:.2f}×)" if twin and twin.rates else ""
         lines.append((row.name, f"{best:,.0f} {row.unit}", f"{statistics.median(result.rates):,.0f}",
                       f"{1e6 * row.work / best:.2f}", ratio, share, randomized))
     widths = [max(len(str(line[i])) for line in [header, *lines]) for i in range(len(header))]
@@ -295,9 +360,10 @@ def describe_machine() -> str:
 def main(quick: bool = False) -> int:
     """Run the benchmark and print the table; `quick`: short rounds and fewer batch sizes."""
     rounds, seconds = (2, 0.05) if quick else (15, 0.25)
-    rows = measurements((1, 16, 256) if quick else VECTOR_SIZES)
+    rows = measurements((1, 16, 256), (16,)) if quick else measurements()
     print(f"qube_suite step speed: {describe_machine()}")
     print(f"best of {rounds} interleaved rounds of ~{seconds:g} s per row; × peer: rate / the peer's "
-          f"({PEER} or {DM_PEER}); % of limit: rate / raw rollout at the same N\n")
-    print(table(run(rows, rounds, seconds)))
+          f"({PEER}, {DM_PEER} or real time); % of limit: rate / raw rollout at the same N; "
+          f"with randomization: the rate with the {RANDOMIZATION} preset (× the plain rate)\n")
+    print(table(run(rows, rounds, seconds, progress=True)))
     return 0

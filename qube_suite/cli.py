@@ -1,66 +1,349 @@
-"""The `qube-suite` command line."""
+"""The `qube-suite` command line (also `python -m qube_suite`).
+
+Each subcommand is a `_<name>` function and an `_add_<name>` parser builder below,
+registered in `SUBCOMMANDS`. User mistakes (`ValueError`, `OSError`, a missing
+optional extra, a hardware stop) end in one line on stderr and exit code 2.
+"""
 
 from __future__ import annotations
 
 import argparse
 import math
+import pathlib
 import sys
 import time
+from typing import Any
+
+from tqdm import tqdm
+
+DEMO_PLOT = "qube_demo.png"
+"""Where `qube-suite demo` writes its plot when matplotlib is installed."""
 
 EPILOG = """examples:
-  qube-suite demo                 swing the simulated Qube up with the energy-shaping controller
-  qube-suite demo --seed 3        another start state
-  qube-suite list                 domains, tasks, Gymnasium ids and controllers
+  qube-suite demo                 swing the simulated Qube up (energy shaping) and plot it
+  qube-suite list                 domains, tasks, Gymnasium ids, presets, controllers, policies
+  qube-suite run --task balance --controller balance --episodes 3 --video balance.mp4
   qube-suite eval --task balance --controller balance --episodes 20 --json
-  qube-suite eval --task swingup --controller ppo:swingup    a shipped learned policy (or a .npz file)
-  qube-suite train --task balance --algo ppo --steps 1000000 --seed 0 --out runs/balance
-  qube-suite bench                step speed against Gymnasium, dm_control and raw MuJoCo (minutes)
-  qube-suite bench --quick        the same table from a few seconds of measurement
-"""
+  qube-suite eval --task balance --controller ppo:balance    a shipped learned policy (or a .npz file)
+  qube-suite train --task balance --algo ppo --steps 500000 --seed 0 --out runs/balance
+  qube-suite bench --quick        step speed against Gymnasium, dm_control and raw MuJoCo
+
+'qube-suite COMMAND --help' describes each command."""
 
 
-def _demo(args: argparse.Namespace) -> int:
-    from qube_suite import baselines, suite
-
-    environment = suite.load("qube", "swingup", task_kwargs={"random": args.seed})
-    controller = baselines.make("swingup", control_frequency=environment.control_frequency,
-                                voltage_limit=environment.task.voltage_limit)
-    print(f"Swing-up on the simulated Qube-Servo 2 at {environment.control_frequency:g} Hz, "
-          f"{environment.task.voltage_limit:g} V limit, energy-shaping controller (seed {args.seed})")
-    start = time.perf_counter()
-    timestep = environment.reset()
-    episode_return, upright_at, largest_arm_angle = 0.0, None, 0.0
-    while not timestep.last():
-        timestep = environment.step(controller(timestep.observation))
-        episode_return += timestep.reward
-        theta, alpha = timestep.observation["state"][:2]
-        largest_arm_angle = max(largest_arm_angle, abs(theta))
-        if upright_at is None and abs(alpha) < math.radians(10):
-            upright_at = environment.physics.time()
-    controller.close()
-    print(f"return {episode_return:.1f} of {environment.episode_steps} "
-          f"({environment.step_count} steps, {time.perf_counter() - start:.1f} s wall time)")
-    if upright_at is not None:
-        print(f"upright after {upright_at:.2f} s; "
-              f"largest arm angle {math.degrees(largest_arm_angle):.0f} deg")
-    else:
-        print("the pendulum did not reach upright")
-    return 0
+# -- list ------------------------------------------------------------------------------------
 
 
 def _list(args: argparse.Namespace) -> int:
-    from qube_suite import baselines, suite
+    from qube_suite import baselines, randomization, suite
+    from qube_suite.policies import shipped
     from qube_suite.tasks import SUITE
-    from qube_suite.wrappers import GYMNASIUM_IDS
+    from qube_suite.wrappers import gymnasium_id
 
     print("domains:", ", ".join(suite.TASKS_BY_DOMAIN))
-    print("tasks:")
-    ids = {task: env_id for env_id, task in GYMNASIUM_IDS.items()}
-    for task in SUITE:
-        tags = [tag for tag in SUITE.tags() if task in SUITE.tagged(tag)]
-        print(f"  {task:24s} {ids[task]:36s} {', '.join(tags)}")
-    print("controllers:", ", ".join(baselines.CONTROLLERS))
+    print("\ntasks (suite name, Gymnasium ids in simulation and on hardware, tags):")
+    rows = [(task, gymnasium_id(task), gymnasium_id(task, "qube_hardware"),
+             ", ".join(tag for tag in SUITE.tags() if task in SUITE.tagged(tag))) for task in SUITE]
+    widths = [max(len(row[i]) for row in rows) for i in range(3)]
+    for row in rows:
+        cells = (cell.ljust(width) for cell, width in zip(row, [*widths, 0], strict=True))
+        print("  " + "  ".join(cells).rstrip())
+    print("\nrandomization presets (--randomization; or a YAML file):", ", ".join(randomization.PRESETS))
+    print("\ncontrollers (--controller) and the tasks they suit:")
+    width = max(map(len, baselines.CONTROLLERS))
+    for name, controller in baselines.CONTROLLERS.items():
+        print(f"  {name.ljust(width)}  {', '.join(getattr(controller, 'tasks', ())) or 'any'}")
+    print("\nshipped policies (--controller, or --policy FILE.npz):", ", ".join(shipped()) or "none")
     return 0
+
+
+# -- running episodes ------------------------------------------------------------------------
+
+
+REALTIME_DOMAIN_KWARGS = {"qube_hardware": {"realtime": True}}
+"""Domains that keep to the wall clock themselves with these `domain_kwargs`; the others are
+paced by sleeping (`RealtimePacer`)."""
+
+
+class RealtimePacer:
+    """A step hook that sleeps until each control step's time has come on the wall clock.
+
+    A loop already slower than real time (e.g. while rendering video) is not slowed further.
+    """
+
+    def __init__(self) -> None:
+        self._start = 0.0
+
+    def __call__(self, step: int, environment: Any) -> None:
+        now = time.perf_counter()
+        if step == 0:
+            self._start = now
+            return
+        delay = self._start + step / environment.control_frequency - now
+        if delay > 0:
+            time.sleep(delay)
+
+
+class ProgressHook:
+    """A step hook that advances a tqdm bar by one per control step."""
+
+    def __init__(self, bar: tqdm):
+        self.bar = bar
+
+    def __call__(self, step: int, environment: Any) -> None:
+        if step:
+            self.bar.update()
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    value = float(text)
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
+    return value
+
+
+def _frame_size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(part) for part in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be WIDTHxHEIGHT in pixels, e.g. 640x480, got {text}") \
+            from None
+    return width, height
+
+
+def _add_policy_arguments(parser: argparse.ArgumentParser) -> None:
+    """What acts in the episodes: exactly one of the group's options."""
+    group = parser.add_mutually_exclusive_group(required=True)
+    group.add_argument("--controller", help="a controller or shipped policy of 'qube-suite list', e.g. mpc, "
+                                            "balance or ppo:balance")
+    group.add_argument("--policy", metavar="FILE.npz", help="a learned policy file ('qube-suite train' writes them)")
+
+
+def _make_policy(args: argparse.Namespace, environment: Any) -> tuple[Any, str]:
+    """The policy the arguments name, built for `environment`, and its name."""
+    from qube_suite import baselines
+    from qube_suite.policies import load_policy
+
+    if args.policy is not None:
+        return load_policy(args.policy), args.policy
+    if args.controller not in baselines.CONTROLLERS:
+        return load_policy(args.controller), args.controller
+    controller = baselines.for_environment(args.controller, environment)
+    suited = getattr(controller, "tasks", ())
+    if suited and args.task not in suited:
+        print(f"qube-suite: note: controller {args.controller!r} is meant for {', '.join(suited)}",
+              file=sys.stderr)
+    return controller, args.controller
+
+
+def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
+    """Files written about the episodes."""
+    outputs = parser.add_argument_group("outputs")
+    outputs.add_argument("--video", metavar="FILE.mp4",
+                         help="film the episodes into one mp4 (needs the media extra; rendering without "
+                              "a GPU is slow, so consider --fps)")
+    outputs.add_argument("--fps", type=_positive_float,
+                         help="video frames per second, at most the control rate (default: the control "
+                              "rate); steps between frames are skipped, playback stays at real speed")
+    outputs.add_argument("--camera", default="front_oblique",
+                         help="video camera: front_oblique (default), front or top")
+    outputs.add_argument("--size", type=_frame_size, default=(640, 480), metavar="WIDTHxHEIGHT",
+                         help="video frame size in pixels, even numbers (default: 640x480)")
+    outputs.add_argument("--plot", metavar="FILE.png",
+                         help="plot the first episode: states, voltage, reward and LED over time "
+                              "(needs the media extra)")
+    outputs.add_argument("--record", metavar="FILE.jsonl",
+                         help="record every step (time, state, observation, action, voltages, reward, "
+                              "LED; raw board readings on qube_hardware) as JSON lines, written as the "
+                              "episodes run, so a crash loses at most the last step; read it with "
+                              "qube_suite.recording.load_recording")
+
+
+def _check_output_paths(args: argparse.Namespace) -> None:
+    """Fail before any episode runs if an output file's folder does not exist."""
+    for option in ("video", "plot", "record"):
+        path = getattr(args, option)
+        if path and not pathlib.Path(path).resolve().parent.is_dir():
+            raise ValueError(f"--{option} {path}: the folder {pathlib.Path(path).parent} does not exist")
+
+
+def _video_recorder(args: argparse.Namespace, environment: Any):
+    """The video hook the arguments ask for, checked against `environment`; None without --video."""
+    if args.video is None:
+        return None
+    from qube_suite import media
+
+    width, height = args.size
+    if args.fps is not None and args.fps > environment.control_frequency:
+        raise ValueError(f"--fps {args.fps:g} exceeds the control rate of "
+                         f"{environment.control_frequency:g} Hz")
+    recorder = media.VideoRecorder(args.video, args.fps, args.camera, width, height)
+    recorder.renderer.render(environment.physics)  # a wrong camera, size or OpenGL fails now
+    return recorder
+
+
+def _recorder(args: argparse.Namespace, environment: Any, policy_name: str):
+    """The episode recorder the arguments ask for, observing `environment`; None without --record."""
+    if args.record is None:
+        return None
+    from qube_suite import recording
+
+    return recording.Recorder(args.record, environment, metadata={
+        "domain": args.domain, "task": args.task, "policy": policy_name, "randomization": args.randomization,
+        "board": args.board, "realtime": args.realtime})
+
+
+def _write_outputs(args: argparse.Namespace, traces: list) -> None:
+    """Write the files the arguments ask for from the episodes' traces; say where recordings went."""
+    if args.record:
+        print(f"recording of {len(traces)} episode(s) written to {args.record}")
+    if args.plot:
+        from qube_suite import plotting
+
+        plotting.plot_episode(traces[0], args.plot)
+        print(f"plot of episode 1 written to {args.plot}")
+
+
+def _run(args: argparse.Namespace) -> int:
+    from qube_suite import episodes, suite
+
+    _check_output_paths(args)
+    if args.plot:  # a missing extra fails before the episodes run
+        from qube_suite import extras
+
+        extras.require("matplotlib", "--plot")
+    domain_kwargs = dict(REALTIME_DOMAIN_KWARGS.get(args.domain, {})) if args.realtime else {}
+    if args.board is not None:
+        if args.domain != "qube_hardware":
+            raise ValueError("--board needs --domain qube_hardware")
+        domain_kwargs["board"] = args.board
+    environment = suite.load(args.domain, args.task, task_kwargs={"random": args.seed},
+                             randomization=args.randomization, domain_kwargs=domain_kwargs)
+    policy, recorder, episode_recorder = None, None, None
+    try:
+        policy, name = _make_policy(args, environment)
+        recorder = _video_recorder(args, environment)
+        episode_recorder = _recorder(args, environment, name)
+        hooks = [recorder] if recorder is not None else []
+        if args.realtime and args.domain not in REALTIME_DOMAIN_KWARGS:
+            hooks.append(RealtimePacer())
+        traces = []
+        with tqdm(total=args.episodes * environment.episode_steps, unit="step", disable=None,
+                  desc=f"{name} on {args.domain}/{args.task}") as bar:
+            for episode in range(args.episodes):
+                seed = args.seed + episode
+                trace = episodes.run_episode(environment, policy, [ProgressHook(bar), *hooks],
+                                             label=f"{name} on {args.domain}/{args.task}, seed {seed}",
+                                             seed=seed)
+                traces.append(trace)
+                bar.update((episode + 1) * environment.episode_steps - bar.n)  # an early end skips ahead
+                end = "terminated" if trace.terminated else "time limit"
+                tqdm.write(f"episode {episode + 1} (seed {seed}): return {trace.episode_return:.1f}, "
+                           f"{trace.steps} steps, {end}")
+    finally:
+        if recorder is not None:
+            recorder.close()
+        if episode_recorder is not None:
+            episode_recorder.close()
+        if hasattr(policy, "close"):
+            policy.close()
+        environment.close()
+    if args.episodes > 1:
+        returns = [trace.episode_return for trace in traces]
+        print(f"mean return {sum(returns) / len(returns):.1f} over {args.episodes} episodes")
+    if recorder is not None:
+        print(f"video of {recorder.frames} frames written to {args.video}")
+    _write_outputs(args, traces)
+    return 0
+
+
+def _add_run(commands) -> None:
+    run = commands.add_parser(
+        "run", help="run episodes with a controller; optionally film and plot them",
+        description="Run seeded episodes of a task with a controller and print each return.",
+        epilog="examples:\n"
+               "  qube-suite run --task swingup --controller mpc --plot swingup.png\n"
+               "  qube-suite run --task balance --controller balance --episodes 3 --randomization mild\n"
+               "  qube-suite run --task swingup --controller mpc --video swingup.mp4 --fps 30\n"
+               "  qube-suite run --task balance --controller balance --record balance.jsonl\n"
+               "  qube-suite run --domain qube_hardware --task balance --controller balance --realtime\n"
+               "  qube-suite run --domain qube_hardware --board qube_servo2_usb --task balance "
+               "--controller balance",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    run.add_argument("--domain", default="qube", help="qube (simulation, default) or qube_hardware")
+    run.add_argument("--task", required=True, help="a task of 'qube-suite list', e.g. swingup")
+    _add_policy_arguments(run)
+    run.add_argument("--episodes", type=_positive_int, default=1, help="number of episodes (default: 1)")
+    run.add_argument("--seed", type=int, default=0, help="seed of the first episode; then seed + 1, ... "
+                                                         "(default: 0)")
+    run.add_argument("--randomization", help="a preset (none, mild, moderate, sim2real) or a YAML file")
+    run.add_argument("--board", help="with qube_hardware: simulated (the substitute board, default) or "
+                                     "qube_servo2_usb (a real Qube through Quanser's SDK)")
+    run.add_argument("--realtime", action="store_true",
+                     help="keep to the wall clock: sleep in simulation, the substitute board's realtime "
+                          "mode on qube_hardware")
+    _add_output_arguments(run)
+    run.set_defaults(run=_run)
+
+
+# -- demo ------------------------------------------------------------------------------------
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from qube_suite import baselines, episodes, extras, suite
+
+    plot_path = args.plot
+    if plot_path is None and extras.available("matplotlib"):
+        plot_path = DEMO_PLOT
+    elif plot_path is not None:
+        extras.require("matplotlib", "--plot")
+    environment = suite.load("qube", "swingup", task_kwargs={"random": args.seed})
+    controller = baselines.for_environment("swingup", environment)
+    print(f"Swing-up on the simulated Qube-Servo 2 at {environment.control_frequency:g} Hz, "
+          f"{environment.task.voltage_limit:g} V limit, energy-shaping controller (seed {args.seed})")
+    start = time.perf_counter()
+    with tqdm(total=environment.episode_steps, unit="step", disable=None, desc="swing-up") as bar:
+        trace = episodes.run_episode(environment, controller, [ProgressHook(bar)],
+                                     label=f"energy-shaping swing-up, seed {args.seed}")
+    controller.close()
+    print(f"return {trace.episode_return:.1f} of {environment.episode_steps} "
+          f"({trace.steps} steps, {time.perf_counter() - start:.1f} s wall time)")
+    upright = trace.time[abs(trace.state[:, 1]) < math.radians(10)]
+    if len(upright):
+        print(f"upright after {upright[0]:.2f} s; "
+              f"largest arm angle {math.degrees(max(abs(trace.state[:, 0]))):.0f} deg")
+    else:
+        print("the pendulum did not reach upright")
+    if plot_path is None:
+        print(f"for a plot of the episode: {extras.MEDIA_HINT}")
+    else:
+        from qube_suite import plotting
+
+        plotting.plot_episode(trace, plot_path)
+        print(f"plot written to {plot_path}")
+    return 0
+
+
+def _add_demo(commands) -> None:
+    demo = commands.add_parser(
+        "demo", help="swing up the simulated Qube, print the return and plot the episode",
+        description=f"Swing the simulated Qube up, print the return and, with matplotlib (the media "
+                    f"extra), plot the episode to {DEMO_PLOT}.",
+        epilog="examples:\n  qube-suite demo\n  qube-suite demo --seed 3 --plot seed3.png",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    demo.add_argument("--seed", type=int, default=0, help="seed of the start state and the controller")
+    demo.add_argument("--plot", metavar="FILE.png", help=f"where to write the plot (default: {DEMO_PLOT})")
+    demo.set_defaults(run=_demo)
+
+
+# -- eval and bench --------------------------------------------------------------------------
 
 
 def _eval(args: argparse.Namespace) -> int:
@@ -82,6 +365,40 @@ def _eval(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_eval(commands) -> None:
+    evaluation = commands.add_parser(
+        "eval", help="score a controller on a task over seeded episodes",
+        description="Score a controller: mean return, success rate and compute time per step.",
+        epilog="example:\n  qube-suite eval --task swingup --controller mpc --episodes 20 --json",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    evaluation.add_argument("--domain", default="qube", help="domain name (default: qube)")
+    evaluation.add_argument("--task", required=True, help="task name, e.g. swingup")
+    evaluation.add_argument("--controller", required=True,
+                            help="controller name (e.g. balance, mpc), shipped policy (e.g. ppo:balance) "
+                                 "or policy file (.npz)")
+    evaluation.add_argument("--episodes", type=int, default=20, help="number of episodes (default: 20)")
+    evaluation.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
+    evaluation.add_argument("--json", action="store_true", help="print the result as JSON")
+    evaluation.set_defaults(run=_eval)
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from qube_suite import benchmark
+
+    return benchmark.main(quick=args.quick)
+
+
+def _add_bench(commands) -> None:
+    bench = commands.add_parser(
+        "bench", help="measure step speed against peers and raw MuJoCo",
+        description="Measure step and reset speed against Gymnasium's InvertedPendulum, dm_control's "
+                    "cartpole and raw MuJoCo, interleaved in one process (minutes; --quick: seconds).",
+        epilog="examples:\n  qube-suite bench\n  qube-suite bench --quick",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    bench.add_argument("--quick", action="store_true", help="short rounds and fewer batch sizes (seconds)")
+    bench.set_defaults(run=_bench)
+
+
 def _train(args: argparse.Namespace) -> int:
     from qube_suite.training import train
 
@@ -94,67 +411,69 @@ def _train(args: argparse.Namespace) -> int:
     return 0
 
 
-def _bench(args: argparse.Namespace) -> int:
-    from qube_suite import benchmark
-
-    return benchmark.main(quick=args.quick)
-
-
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="qube-suite", description="Control and RL tasks on the Quanser Qube-Servo 2.",
-        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    commands = parser.add_subparsers(dest="command", required=True, metavar="command")
-    demo = commands.add_parser("demo", help="swing up the simulated Qube and print the return")
-    demo.add_argument("--seed", type=int, default=0, help="seed of the start state")
-    demo.set_defaults(run=_demo)
-    listing = commands.add_parser("list", help="list domains, tasks, Gymnasium ids and controllers")
-    listing.set_defaults(run=_list)
-    evaluation = commands.add_parser(
-        "eval", help="score a controller on a task over seeded episodes",
-        epilog="example: qube-suite eval --domain qube --task swingup --controller mpc --episodes 20 --json")
-    evaluation.add_argument("--domain", default="qube", help="domain name (default: qube)")
-    evaluation.add_argument("--task", required=True, help="task name, e.g. swingup")
-    evaluation.add_argument("--controller", required=True,
-                            help="controller name (e.g. balance, mpc), shipped policy (e.g. ppo:swingup) "
-                                 "or policy file (.npz)")
-    evaluation.add_argument("--episodes", type=int, default=20, help="number of episodes (default: 20)")
-    evaluation.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
-    evaluation.add_argument("--json", action="store_true", help="print the result as JSON")
-    evaluation.set_defaults(run=_eval)
+def _add_train(commands) -> None:
     training = commands.add_parser(
         "train", help="train a policy with stable-baselines3 (needs the 'rl' extra)",
-        epilog="example: qube-suite train --task swingup --algo ppo --steps 3000000 --randomization sim2real")
+        description="Train PPO or SAC on a task; write checkpoints, evaluations, CSV and TensorBoard logs "
+                    "and the policy as a numpy file that 'eval --controller FILE.npz' runs.",
+        epilog="examples:\n  qube-suite train --task balance --steps 500000 --out runs/balance\n"
+               "  qube-suite train --task swingup --steps 3000000 --randomization sim2real",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     training.add_argument("--task", required=True, help="task name, e.g. swingup")
     training.add_argument("--algo", choices=("ppo", "sac"), default="ppo", help="algorithm (default: ppo)")
-    training.add_argument("--steps", type=int, default=2_000_000, help="environment steps (default: 2000000)")
+    training.add_argument("--steps", type=_positive_int, default=2_000_000,
+                          help="environment steps (default: 2000000)")
     training.add_argument("--seed", type=int, default=0, help="seed (default: 0)")
     training.add_argument("--randomization", default=None,
                           help="preset (mild, moderate, sim2real) or YAML file (default: none)")
     training.add_argument("--domain", choices=("qube", "qube_hardware"), default="qube",
                           help="domain to train on (default: qube)")
-    training.add_argument("--num-envs", type=int, default=None,
+    training.add_argument("--num-envs", type=_positive_int, default=None,
                           help="environments stepped together (default: 64 for ppo, 4 for sac)")
-    training.add_argument("--evaluations", type=int, default=20,
+    training.add_argument("--evaluations", type=_positive_int, default=20,
                           help="evaluations of the deterministic policy during training (default: 20)")
-    training.add_argument("--eval-episodes", type=int, default=8, help="episodes per evaluation (default: 8)")
-    training.add_argument("--checkpoints", type=int, default=10, help="checkpoints saved (default: 10)")
+    training.add_argument("--eval-episodes", type=_positive_int, default=8,
+                          help="episodes per evaluation (default: 8)")
+    training.add_argument("--checkpoints", type=_positive_int, default=10, help="checkpoints saved (default: 10)")
     training.add_argument("--init", default=None,
                           help="start from the model of a previous run (its directory), e.g. balance before "
                                "swingup, or to fine-tune with a randomization")
     training.add_argument("--out", default=None, help="run directory (default: runs/ALGO_TASK_SEED)")
     training.set_defaults(run=_train)
-    bench = commands.add_parser("bench", help="measure step speed against peers and raw MuJoCo")
-    bench.add_argument("--quick", action="store_true", help="short rounds and fewer batch sizes (seconds)")
-    bench.set_defaults(run=_bench)
+
+
+def _add_list(commands) -> None:
+    listing = commands.add_parser(
+        "list", help="list domains, tasks, Gymnasium ids, presets, controllers and policies",
+        description="List what can be run: domains, tasks with their Gymnasium ids and tags, "
+                    "randomization presets, controllers with the tasks they suit, shipped policies.",
+        epilog="example:\n  qube-suite list", formatter_class=argparse.RawDescriptionHelpFormatter)
+    listing.set_defaults(run=_list)
+
+
+SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_train, _add_bench)
+"""Parser builders of the subcommands, in the order `--help` lists them."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The `qube-suite` argument parser."""
+    parser = argparse.ArgumentParser(
+        prog="qube-suite", description="Control and RL tasks on the Quanser Qube-Servo 2.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    commands = parser.add_subparsers(dest="command", required=True, metavar="command")
+    for add in SUBCOMMANDS:
+        add(commands)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line with `argv` (default: `sys.argv[1:]`); return the exit code."""
+    from qube_suite.hardware.errors import HardwareError
+
     args = build_parser().parse_args(argv)
     try:
         return args.run(args)
-    except (ValueError, OSError, ImportError) as error:
+    except (ValueError, OSError, ImportError, HardwareError) as error:
         print(f"qube-suite: error: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

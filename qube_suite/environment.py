@@ -21,7 +21,8 @@ def episode_steps(time_limit: float, control_frequency: float) -> int:
 
     Raises ValueError unless `time_limit` is a positive finite number.
     """
-    if not (isinstance(time_limit, (int, float)) and 0.0 < time_limit < math.inf):
+    if not (isinstance(time_limit, (int, float)) and not isinstance(time_limit, bool)
+            and 0.0 < time_limit < math.inf):
         raise ValueError(f"time_limit must be a positive number of seconds, got {time_limit!r}")
     return max(1, round(time_limit * control_frequency))
 
@@ -42,9 +43,19 @@ class Environment(control.Environment):
       raises ValueError and leaves the environment as it was;
     * the episode terminates (discount 0) when the task's safe set is left, and is
       truncated (discount 1) after `time_limit` seconds of control steps;
+    * a step in which the simulation diverges ends the episode too (reward 0,
+      discount 0, the observation of the state before that step), and
+      `physics_error` says why; a step or reset that raises (e.g. a hardware
+      safety stop) ends the episode, so the next `step` resets;
     * the LED shows each step's reward (green high, red low);
     * with a randomization, every reset first draws the episode's parameters and
-      effects from the task's random state (`randomization_sample`).
+      effects from the task's random state (`randomization_sample`);
+    * `reset(seed=s)` reseeds the task's random state first (same seed, same
+      episode), as Gymnasium's `reset(seed=...)` does;
+    * objects in `observers` are told of every episode start and step (e.g. a
+      `qube_suite.recording.Recorder`): `episode_started(environment)` and
+      `step_done(environment, action, reward, discount)`, discount None while the
+      episode goes on.
 
     Args:
         physics: a Qube domain (`qube_suite.domains.interface.QubePhysics`) whose
@@ -65,6 +76,8 @@ class Environment(control.Environment):
         self._randomizer = None if randomization is None else randomization_.Randomizer(
             randomization_.load(randomization), physics, 1.0 / self._control_frequency)
         self._randomization_sample = None
+        self._episode_seed: int | None = None
+        self.observers: list = []
 
     @property
     def control_frequency(self) -> float:
@@ -82,6 +95,22 @@ class Environment(control.Environment):
         return self._step_count
 
     @property
+    def needs_reset(self) -> bool:
+        """True before the first reset, after an episode's last step, and after a step or reset
+        that raised: the next `step` starts a new episode."""
+        return self._reset_next_step
+
+    @property
+    def physics_error(self) -> str | None:
+        """Why the last step ended the episode because the simulation diverged, else None."""
+        return self._physics.physics_error
+
+    @property
+    def episode_seed(self) -> int | None:
+        """The seed the current episode's reset was given, or None (the task's random state went on)."""
+        return self._episode_seed
+
+    @property
     def randomization(self) -> randomization_.Randomization | None:
         """The randomization drawn from at every reset, or None."""
         return None if self._randomizer is None else self._randomizer.config
@@ -92,21 +121,27 @@ class Environment(control.Environment):
         or None without randomization."""
         return self._randomization_sample
 
-    def reset(self) -> dm_env.TimeStep:
-        """Start a new episode and return its first `TimeStep`."""
-        self.start_episode()
+    def reset(self, seed: int | None = None) -> dm_env.TimeStep:
+        """Start a new episode and return its first `TimeStep`; `seed` reseeds the task first."""
+        self.start_episode(seed)
         return dm_env.restart(self._task.get_observation(self._physics))
 
-    def start_episode(self) -> None:
+    def start_episode(self, seed: int | None = None) -> None:
         """Start a new episode without building a `TimeStep`: the core that `reset` and the
-        Gymnasium view share."""
-        self._reset_next_step = False
+        Gymnasium view share. `seed`: reseed the task's random state first."""
+        self._reset_next_step = True  # until the episode has started
         self._step_count = 0
+        if seed is not None:
+            self._task.random.seed(seed)
+        self._episode_seed = seed
         if self._randomizer is not None:
             self._randomization_sample = self._randomizer.start_episode(self._task.random)
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics)
         self._physics.set_led(reward_colour(self._task.get_reward(self._physics)))
+        self._reset_next_step = False
+        for observer in self.observers:
+            observer.episode_started(self)
 
     def step(self, action) -> dm_env.TimeStep:
         """Apply `action` for one control period and return the resulting `TimeStep`."""
@@ -123,21 +158,34 @@ class Environment(control.Environment):
         Gymnasium view share.
 
         Returns the reward and the discount: None while the episode goes on, 0.0 when it
-        terminates, 1.0 when it is truncated; after either, the next `step` resets.
+        terminates (or the simulation diverged: reward 0), 1.0 when it is truncated; after
+        either, the next `step` resets. A bad action raises ValueError and changes nothing.
         """
         physics, task = self._physics, self._task
         task.before_step(action, physics)
-        physics.step(self._n_sub_steps)
+        try:
+            physics.step(self._n_sub_steps)
+        except BaseException:
+            self._reset_next_step = True
+            raise
+        self._step_count += 1
+        if physics.physics_error is not None:
+            self._reset_next_step = True
+            physics.end_episode()
+            for observer in self.observers:
+                observer.step_done(self, action, 0.0, 0.0)
+            return 0.0, 0.0
         task.after_step(physics)
         reward = task.get_reward(physics)
         physics.set_led(reward_colour(reward))
-        self._step_count += 1
         discount = task.get_termination(physics)
         if discount is None and self._step_count >= self._episode_steps:
             discount = 1.0
         if discount is not None:
             self._reset_next_step = True
             physics.end_episode()
+        for observer in self.observers:
+            observer.step_done(self, action, reward, discount)
         return reward, discount
 
     def close(self) -> None:

@@ -34,7 +34,9 @@ ROTOR_REVOLUTIONS = 5
 
 @dataclasses.dataclass
 class EvaluationResult:
-    """Returns and success over seeded episodes; compute per step for controllers."""
+    """Returns and success over seeded episodes; compute per step for controllers: the wall-clock
+    time of each policy call and the CPU time of the calling thread during it (s), which leaves
+    out the time other processes hold the CPU."""
 
     domain: str
     task: str
@@ -44,6 +46,7 @@ class EvaluationResult:
     returns: list[float]
     successes: list[bool]
     step_times: np.ndarray = dataclasses.field(repr=False)
+    step_cpu_times: np.ndarray = dataclasses.field(repr=False)
 
     @property
     def mean_return(self) -> float:
@@ -66,6 +69,7 @@ class EvaluationResult:
             "success_rate": self.success_rate, "returns": self.returns,
             "step_time_median_ms": float(np.median(self.step_times) * 1e3),
             "step_time_p99_ms": float(np.percentile(self.step_times, 99) * 1e3),
+            "step_cpu_time_p99_ms": float(np.percentile(self.step_cpu_times, 99) * 1e3),
         }
 
 
@@ -89,10 +93,11 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
     """Run `episodes` episodes (seeds `seed`, `seed + 1`, ...) of `policy` and score them.
 
     Args:
-        policy: a controller name from `qube_suite.baselines.CONTROLLERS`, a learned
-            policy for `qube_suite.policies.load_policy` ("ppo:swingup" or a
-            policy file's path), or any callable mapping a dm_env observation to a voltage (with an optional
-            `reset()` called before each episode).
+        policy: a controller name from `qube_suite.baselines.CONTROLLERS` (built by
+            `baselines.for_environment`: the environment's control frequency, voltage
+            limit and latency), a learned policy for `qube_suite.policies.load_policy`
+            ("ppo:balance" or a policy file's path), or any callable mapping a dm_env
+            observation to a voltage (with an optional `reset()` called before each episode).
         domain, task, randomization, task_kwargs, environment_kwargs, domain_kwargs: as
             `suite.load` (e.g. `domain_kwargs={"plant": {...}}` for the hardware substitute).
         progress: show a progress bar (tqdm, on stderr).
@@ -104,12 +109,11 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
                              domain_kwargs=domain_kwargs)
     name = policy if isinstance(policy, str) else getattr(policy, "name", type(policy).__name__)
     if isinstance(policy, str) and policy in baselines.CONTROLLERS:
-        policy = baselines.make(policy, control_frequency=environment.control_frequency,
-                                voltage_limit=environment.task.voltage_limit)
+        policy = baselines.for_environment(policy, environment)
     elif isinstance(policy, str):
         policy = load_policy(policy)
     hanging_goal = task.startswith("dampen")
-    returns, successes, step_times = [], [], []
+    returns, successes, step_times, step_cpu_times = [], [], [], []
     bar = tqdm(total=episodes, unit="episode", disable=not progress, desc=f"{name} on {domain}/{task}")
     try:
         for episode in range(episodes):
@@ -119,9 +123,10 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
             timestep = environment.reset()
             episode_return, errors = 0.0, []
             while not timestep.last():
-                start = time.perf_counter()
+                start, cpu_start = time.perf_counter(), time.thread_time()
                 action = policy(timestep.observation)
                 step_times.append(time.perf_counter() - start)
+                step_cpu_times.append(time.thread_time() - cpu_start)
                 timestep = environment.step(action)
                 episode_return += timestep.reward
                 alpha = environment.physics.pendulum_angle()
@@ -136,4 +141,5 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
         bar.close()
         if hasattr(policy, "close"):
             policy.close()
-    return EvaluationResult(domain, task, name, episodes, seed, returns, successes, np.array(step_times))
+    return EvaluationResult(domain, task, name, episodes, seed, returns, successes, np.array(step_times),
+                            np.array(step_cpu_times))

@@ -7,9 +7,11 @@
 from __future__ import annotations
 
 import importlib
+import math
 from collections.abc import Mapping
 from typing import Any
 
+from qube_suite.arguments import check_keywords, keywords_of
 from qube_suite.environment import DEFAULT_CONTROL_FREQUENCY, Environment
 from qube_suite.tasks import SUITE as _TASKS
 from qube_suite.tasks import QubeTask
@@ -18,10 +20,14 @@ _DOMAIN_MODULES = {
     "qube": "qube_suite.domains.qube",
     "qube_hardware": "qube_suite.domains.qube_hardware",
 }
-"""Domain name -> module with `make_physics(control_frequency, **domain_kwargs)`."""
+"""Domain name -> module with `make_physics(control_frequency, **domain_kwargs)` and the tuple
+`DOMAIN_KWARGS` of the keys `domain_kwargs` may hold."""
 
 ENVIRONMENT_KWARGS = ("control_frequency", "time_limit")
 """Keys `environment_kwargs` may hold."""
+
+TASK_KWARGS = keywords_of(QubeTask)
+"""Keys `task_kwargs` may hold (every task takes the same; sparse variants are separate tasks)."""
 
 TASKS_BY_DOMAIN: dict[str, tuple[str, ...]] = {domain: tuple(_TASKS) for domain in _DOMAIN_MODULES}
 """Domain name -> names of its tasks."""
@@ -69,13 +75,17 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
     """
     task = make_task(domain_name, task_name, task_kwargs)
     environment_kwargs = dict(environment_kwargs or {})
-    unknown = set(environment_kwargs) - set(ENVIRONMENT_KWARGS)
-    if unknown:
-        raise ValueError(f"unknown environment_kwargs {sorted(unknown)}; "
-                         f"valid: {', '.join(ENVIRONMENT_KWARGS)}")
+    check_keywords(environment_kwargs, ENVIRONMENT_KWARGS, "environment_kwargs")
     domain = importlib.import_module(_DOMAIN_MODULES[domain_name])
+    domain_kwargs = dict(domain_kwargs or {})
+    check_keywords(domain_kwargs, domain.DOMAIN_KWARGS, f"domain_kwargs of domain {domain_name!r}")
     frequency = environment_kwargs.get("control_frequency", DEFAULT_CONTROL_FREQUENCY)
-    physics = domain.make_physics(control_frequency=frequency, **dict(domain_kwargs or {}))
+    physics = domain.make_physics(control_frequency=frequency, **domain_kwargs)
+    board_limit = getattr(physics, "max_voltage", math.inf)
+    if task.voltage_limit > board_limit:
+        physics.close()
+        raise ValueError(f"the task's voltage_limit of {task.voltage_limit:g} V exceeds the board's "
+                         f"max_voltage of {board_limit:g} V; lower voltage_limit or raise max_voltage")
     return Environment(physics, task, randomization=randomization, **environment_kwargs)
 
 
@@ -90,4 +100,6 @@ def make_task(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] |
     if task_name not in TASKS_BY_DOMAIN[domain_name]:
         raise ValueError(f"unknown task {task_name!r} for domain {domain_name!r}; valid tasks: "
                          f"{', '.join(TASKS_BY_DOMAIN[domain_name])}")
-    return _TASKS[task_name](**dict(task_kwargs or {}))
+    task_kwargs = dict(task_kwargs or {})
+    check_keywords(task_kwargs, TASK_KWARGS, "task_kwargs")
+    return _TASKS[task_name](**task_kwargs)

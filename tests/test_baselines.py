@@ -129,6 +129,28 @@ def test_model_motor_work_torque_and_swing_centre():
     assert abs(model.swing_offset(math.pi / 2)) < math.radians(30)
 
 
+def test_model_accelerations_match_the_simulated_qube():
+    random = np.random.default_rng(0)
+    for overrides in ({}, {"pendulum_mass": 0.03, "arm_length": 0.1, "arm_damping": 1e-3}):
+        model, physics = RigidBodyModel.from_parameters(overrides), qube.make_physics(250.0, overrides)
+        for _ in range(5):
+            state = random.uniform([-1.5, -math.pi, -10.0, -30.0], [1.5, math.pi, 10.0, 30.0])
+            volts = random.uniform(-5.0, 5.0)
+            physics.reset_to(state)
+            physics.set_voltage(volts)
+            physics.forward()
+            np.testing.assert_allclose(model.accelerations(*state[1:], volts), physics.data.qacc, rtol=1e-9)
+
+
+def test_model_arm_torque_of_the_accelerations_at_rest_is_the_motors():
+    model, physics = RigidBodyModel.from_parameters(), qube.make_physics(250.0)
+    for alpha, volts in [(0.3, 2.0), (2.5, -1.0)]:
+        physics.reset_to([0.0, alpha, 0.0, 0.0])
+        physics.set_voltage(volts)
+        physics.forward()
+        assert model.arm_torque(alpha, *physics.data.qacc) == pytest.approx(model.torque_per_volt * volts)
+
+
 # -- LQR design ---------------------------------------------------------------------------
 
 

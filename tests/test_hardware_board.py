@@ -147,9 +147,11 @@ def test_realtime_task_follows_the_wall_clock_at_250_hz():
     for _ in range(50):
         rig.read()
     elapsed = time.perf_counter() - start
-    assert 0.15 < elapsed < 0.5                                        # 0.2 s nominal; loose
-    assert rig.board.time == pytest.approx(time.perf_counter() - start, abs=0.05)
-    assert rig.board.task_get_buffer_overflows(rig.task) <= 10          # a busy machine may miss some
+    # Never faster than the wall clock; how much slower depends on the machine's load, so
+    # the upper bounds are loose (tests/benchmarks measure the jitter, not the tests).
+    assert 0.19 < elapsed < 5.0                                        # 0.2 s nominal
+    assert rig.board.time <= time.perf_counter() - start + 0.01
+    assert rig.board.time >= 0.19
 
 
 def test_samples_missed_in_realtime_overflow_the_task_buffer():

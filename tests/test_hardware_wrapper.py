@@ -132,7 +132,9 @@ def test_arm_beyond_its_limit_stops_the_motor():
         qube.board.set_true_state([math.radians(101), math.pi, 0.0, 0.0])
         with pytest.raises(ArmLimitError, match="101 degrees"):
             qube.action(2.0)
-        assert qube.board.applied_voltage == 0.0
+        assert_motor_off(qube.board)
+        assert qube.is_idle
+        qube.resume()
         with pytest.raises(ArmLimitError):                             # again while it stays there
             qube.action(-2.0)
     with QubeServo2(arm_limit=None) as qube:

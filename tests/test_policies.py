@@ -12,8 +12,7 @@ import pytest
 from qube_suite import cli, evaluate
 from qube_suite.policies import MLPPolicy, features, load, load_policy, save, shipped
 
-SHIPPED = ("ppo:balance", "ppo:balance_follow", "ppo:dampen", "ppo:rotor", "ppo:swingup",
-           "ppo:swingup_follow")
+SHIPPED = ("ppo:balance", "ppo:balance_follow", "ppo:dampen")
 
 
 def hand_made(squash=False, observation_size=4, activation="tanh"):
@@ -118,20 +117,20 @@ def test_corrupt_or_missing_policy_files_raise_value_error(tmp_path):
 
 
 def test_unknown_policy_names_list_the_shipped_ones():
-    with pytest.raises(ValueError, match="ppo:swingup"):
+    with pytest.raises(ValueError, match="ppo:balance, ppo:balance_follow, ppo:dampen"):
         load_policy("ppo:juggle")
 
 
 def test_importing_qube_suite_and_running_a_policy_does_not_import_torch():
     code = ("import sys, qube_suite, qube_suite.policies, qube_suite.cli, qube_suite.training\n"
             "from qube_suite.policies import load_policy\n"
-            "policy = load_policy('ppo:swingup'); policy([0.0, 3.1, 0.0, 0.0])\n"
+            "policy = load_policy('ppo:balance'); policy([0.0, 0.1, 0.0, 0.0])\n"
             "print(sorted({'torch', 'stable_baselines3'} & set(sys.modules)))")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert result.stdout.strip() == "[]"
 
 
-def test_the_six_policies_are_shipped_and_listed():
+def test_the_policies_are_shipped_and_listed():
     assert set(SHIPPED) <= set(shipped())
     for spec, path in shipped().items():
         policy = load_policy(spec)
@@ -139,12 +138,10 @@ def test_the_six_policies_are_shipped_and_listed():
 
 
 @pytest.mark.parametrize(("spec", "task", "least"), [
-    ("ppo:swingup", "swingup", 1400), ("ppo:balance", "balance", 1900), ("ppo:dampen", "dampen", 1700),
-    ("ppo:balance_follow", "balance_follow", 1700), ("ppo:swingup_follow", "swingup_follow", 1200),
-    ("ppo:rotor", "rotor", 5)])
-def test_shipped_policies_reach_a_modest_return(spec, task, least):
+    ("ppo:balance", "balance", 2000), ("ppo:dampen", "dampen", 1850), ("ppo:balance_follow", "balance_follow", 1900)])
+def test_shipped_policies_reach_their_targets_on_unseen_seeds(spec, task, least):
     result = evaluate(spec, task=task, episodes=2, seed=1000)
-    assert min(result.returns) >= least, result.returns
+    assert min(result.returns) >= least and result.success_rate == 1.0, result.returns
 
 
 def test_eval_cli_runs_a_shipped_policy(capsys):

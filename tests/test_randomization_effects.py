@@ -16,6 +16,7 @@ from qube_suite.randomization import (
     ObservationNoise,
     Quantization,
     Saturation,
+    Streams,
     VelocityFilter,
     VoltageOffset,
 )
@@ -225,6 +226,65 @@ def test_effects_on_arrays_for_n_environments_match_one_at_a_time():
                         ObservationDelay(delays[i])])
         expected = [single.reset(states[0, i].tolist())] + [single(x[i].tolist()) for x in states[1:]]
         np.testing.assert_array_equal(np.array(outputs)[:, i], np.array(expected))
+
+
+def chains_for(settings, chain, rng):
+    """Sensor, actuator and timing chains for settings (one value, or an array over environments);
+    noise and jitter share `rng`, as in an environment."""
+    return (chain([Quantization(settings["counts"]), VelocityFilter(settings["cutoff"], PERIOD),
+                   ObservationNoise(settings["std"], rng), ObservationDelay(settings["delay"])]),
+            chain([ActionDelay(settings["delay"]), VoltageOffset(settings["offset"]),
+                   DeadZone(settings["offset"] / 2), Saturation(settings["offset"] + 1.0)]),
+            chain([ControlJitter(settings["fraction"], rng)]))
+
+
+def test_n_environments_with_own_generators_and_redrawn_settings_match_one_at_a_time():
+    """Noise and jitter from `Streams`, and one environment restarted with new settings (a longer delay
+    line among them) by `set_rows` and `reset(x, rows)`: each environment is its one-Qube chains."""
+    rng = np.random.default_rng(3)
+    states, volts = rng.uniform(-4, 4, (80, 3, 4)), rng.uniform(-4, 4, (80, 3))
+    episodes = [{"counts": 256, "cutoff": 20.0, "std": [0.1, 0.2, 0.3, 0.4], "delay": 0, "offset": 0.1,
+                 "fraction": 0.1},
+                {"counts": 1024, "cutoff": 50.0, "std": [0.0] * 4, "delay": 2, "offset": -0.2,
+                 "fraction": 0.0},
+                {"counts": 2048, "cutoff": 100.0, "std": [1.0, 1.0, 2.0, 2.0], "delay": 1, "offset": 0.3,
+                 "fraction": 0.5},
+                {"counts": 64, "cutoff": 5.0, "std": [0.5] * 4, "delay": 4, "offset": 0.5, "fraction": 0.3}]
+    restart, seeds = 40, [11, 12, 13, 14]
+
+    def stacked(dicts):
+        return {key: np.array([d[key] for d in dicts]) for key in dicts[0]}
+
+    generators = [np.random.RandomState(seed) for seed in seeds[:3]]
+    batch = chains_for(stacked(episodes[:3]), BatchChain, Streams(generators))
+    singles = [chains_for(episodes[i], Chain, np.random.RandomState(seeds[i])) for i in range(3)]
+    got, expected = [], [[], [], []]
+    for step in range(80):
+        x = (states[step], volts[step], np.full(3, PERIOD))
+        if step == 0:
+            got.append([chain.reset(signal) for chain, signal in zip(batch[:2], x, strict=False)])
+        else:
+            durations = batch[2](x[2])
+            got.append([batch[0](x[0]), batch[1](x[1]), durations])
+        if step == restart:  # after the step, environment 1 starts a new episode with the fourth settings
+            rows = np.array([1])
+            for chain, fresh in zip(batch, chains_for(stacked(episodes[3:]), BatchChain, None), strict=True):
+                for effect, new in zip(chain.effects, fresh.effects, strict=True):
+                    effect.set_rows(rows, new)
+            generators[1].seed(seeds[3])
+            for outputs, chain, signal in zip(got[-1], batch[:2], x, strict=False):  # timing has no memory
+                outputs[1] = chain.reset(signal[rows], rows)[0]
+            singles[1] = chains_for(episodes[3], Chain, np.random.RandomState(seeds[3]))
+        for i, (sensor, actuator, timing) in enumerate(singles):
+            if step == 0 or (step == restart and i == 1):
+                expected[i].append([sensor.reset(x[0][i].tolist()), actuator.reset(float(x[1][i]))])
+            else:
+                duration = timing(float(x[2][i]))
+                expected[i].append([sensor(x[0][i].tolist()), actuator(float(x[1][i])), duration])
+    for i in range(3):
+        for step in range(80):
+            for signal, value in enumerate(expected[i][step]):
+                np.testing.assert_array_equal(got[step][signal][i], value, err_msg=f"env {i} step {step}")
 
 
 def test_resetting_some_of_n_environments_keeps_the_others():

@@ -182,3 +182,17 @@ def test_effects_start_afresh_every_episode():
             timestep = env.step([volts])
             motor.append(float(env.physics.data.ctrl[0]))
         assert motor == [0.0, 0.0, 1.0]  # the delay line holds 0 V again, not the last episode's commands
+
+
+def test_noise_after_a_reset_depends_on_the_seed_only():
+    """An episode's noise stream starts at its first measurement, whether or not the effects were rebuilt."""
+    noise = {"effects": {"observation_noise": {"std": [0.01, 0.01, 0.1, 0.1]},
+                         "control_jitter": {"fraction": 0.2}}}
+    fresh = gymnasium.make("QubeSuite/Rotor-v0", randomization=noise)
+    used = gymnasium.make("QubeSuite/Rotor-v0", randomization=noise)
+    used.reset(seed=5)
+    used.step(np.zeros(1, np.float32))
+    np.testing.assert_array_equal(used.reset(seed=3)[0], fresh.reset(seed=3)[0])  # kept effects, built ones
+    volts = np.ones(1, np.float32)
+    for _ in range(20):
+        np.testing.assert_array_equal(used.step(volts)[0], fresh.step(volts)[0])

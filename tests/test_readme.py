@@ -1,4 +1,5 @@
-"""The README's examples run, its set-up commands exist, and its parameter table is the package's."""
+"""The README's examples run, its set-up commands exist, its parameter table is the package's, and
+its results table covers every controller, task and domain."""
 
 import pathlib
 import re
@@ -6,7 +7,7 @@ import re
 import pytest
 from conftest import OFFSCREEN_GL
 
-from qube_suite import parameters, randomization
+from qube_suite import baselines, parameters, randomization, suite
 
 README = (pathlib.Path(__file__).resolve().parent.parent / "README.md").read_text()
 PYTHON_BLOCKS = re.findall(r"```python\n(.*?)```", README, re.S)
@@ -25,7 +26,8 @@ def test_two_setup_commands():
 
 
 @pytest.mark.parametrize("index", range(len(PYTHON_BLOCKS)))
-def test_python_example_runs(index):
+def test_python_example_runs(index, monkeypatch, tmp_path):
+    monkeypatch.chdir(tmp_path)  # files the examples write land here
     code = PYTHON_BLOCKS[index]
     if "render" in code and not OFFSCREEN_GL:
         pytest.skip("offscreen rendering needs OSMesa (apt-get install libosmesa6)")
@@ -66,3 +68,13 @@ def test_preset_table_matches_the_presets():
             cells = ["–" if entry is None else preset_cell(name, entry) for entry in entries]
             rows.append(f"| `{name}` | " + " | ".join(cells) + " |")
     assert "\n".join(rows) in README
+
+
+def test_results_table_covers_every_controller_task_and_domain():
+    block = re.search(r"<!-- results:begin -->\n(.*?)<!-- results:end -->", README, re.S)
+    assert block, "README lacks the results markers"
+    header = re.search(r"^\| controller \| task \|.*$", block.group(1), re.M).group(0)
+    assert all(f"`{domain}`" in header for domain in suite.TASKS_BY_DOMAIN)
+    rows = re.findall(r"^\| `(\w+)` \| (\w+) \|", block.group(1), re.M)
+    expected = {(name, task) for name, cls in baselines.CONTROLLERS.items() for task in cls.tasks}
+    assert len(rows) == len(expected) and set(rows) == expected

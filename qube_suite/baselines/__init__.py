@@ -1,13 +1,18 @@
 """Controllers derived from the Qube model, by name: balance (LQR), swingup, dampen, follow,
-rotor (energy shaping with LQRs) and mpc (sampling MPC).
+rotor (energy shaping with LQRs) and mpc (sampling MPC). Each estimates the state from the
+observed angles with a model-based observer, predicted over the domain's latency.
 
     from qube_suite import baselines
-    controller = baselines.make("swingup", control_frequency=250.0, voltage_limit=3.0)
+    controller = baselines.make("swingup", control_frequency=250.0, voltage_limit=3.0, latency_steps=0)
+    controller = baselines.for_environment("swingup", env)   # the same, read from a suite environment
     voltage = controller(observation)
 """
 
 from __future__ import annotations
 
+import math
+
+from qube_suite.arguments import check_keywords, keywords_of
 from qube_suite.baselines.base import Controller, split_observation
 from qube_suite.baselines.dampen import Dampen
 from qube_suite.baselines.follow import Follow
@@ -15,6 +20,7 @@ from qube_suite.baselines.lqr import BalanceLQR, lqr_gain
 from qube_suite.baselines.mpc import SamplingMPC
 from qube_suite.baselines.rotor import Rotor
 from qube_suite.baselines.swingup import SwingUp
+from qube_suite.domains.qube import check_control_frequency
 
 CONTROLLERS: dict[str, type[Controller]] = {
     cls.name: cls for cls in (BalanceLQR, SwingUp, Dampen, Follow, Rotor, SamplingMPC)}
@@ -22,11 +28,32 @@ CONTROLLERS: dict[str, type[Controller]] = {
 
 
 def make(name: str, **kwargs) -> Controller:
-    """The controller called `name`, built with `kwargs`; ValueError lists valid names."""
+    """The controller called `name`, built with `kwargs` (`control_frequency` in Hz,
+    `voltage_limit` in V, ...).
+
+    Raises ValueError for an unknown name or keyword (listing the valid ones), a
+    control frequency outside [10, 2000] Hz or a voltage limit that is not positive.
+    """
     if name not in CONTROLLERS:
         raise ValueError(f"unknown controller {name!r}; valid controllers: {', '.join(CONTROLLERS)}")
-    return CONTROLLERS[name](**kwargs)
+    cls = CONTROLLERS[name]
+    check_keywords(kwargs, keywords_of(cls), f"keyword arguments of controller {name!r}")
+    if "control_frequency" in kwargs:
+        check_control_frequency(kwargs["control_frequency"])
+    limit = kwargs.get("voltage_limit", 1.0)
+    if isinstance(limit, bool) or not isinstance(limit, (int, float)) or not 0.0 < limit < math.inf:
+        raise ValueError(f"voltage_limit must be a positive number of volts, got {limit!r}")
+    return cls(**kwargs)
+
+
+def for_environment(name: str, environment, **kwargs) -> Controller:
+    """The controller called `name` for a suite `environment`: built for its control frequency,
+    its task's voltage limit and its domain's `latency_steps`; `kwargs` add or override settings."""
+    settings = {"control_frequency": environment.control_frequency,
+                "voltage_limit": environment.task.voltage_limit,
+                "latency_steps": environment.physics.latency_steps}
+    return make(name, **{**settings, **kwargs})
 
 
 __all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "Dampen", "Follow", "Rotor", "SamplingMPC", "SwingUp",
-           "lqr_gain", "make", "split_observation"]
+           "for_environment", "lqr_gain", "make", "split_observation"]

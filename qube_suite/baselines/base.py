@@ -1,4 +1,4 @@
-"""What every controller shares: observation in, motor voltage out."""
+"""What every controller shares: observation in, motor voltage out, through a state observer."""
 
 from __future__ import annotations
 
@@ -7,6 +7,10 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
+
+from qube_suite.baselines.model import RigidBodyModel
+from qube_suite.baselines.observer import StateObserver
+from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
 
 
 def split_observation(observation: Any) -> tuple[np.ndarray, float]:
@@ -30,18 +34,49 @@ def split_observation(observation: Any) -> tuple[np.ndarray, float]:
 class Controller:
     """A controller for the Qube: `voltage = controller(observation)`.
 
-    Subclasses set `name` and `tasks` (the suite tasks it is meant for) and
-    implement `__call__`; `reset` is called at the start of each episode.
+    Each call passes the observation's state through the `StateObserver` (the state
+    estimated from the angles, predicted over `latency_steps`) to `voltage_for`, the
+    control law, cancels the unmodelled torque the observer found, and tells the
+    observer the voltage sent. Cancelling: the observer's unexplained accelerations b
+    are those of a torque M(alpha) b; its arm component, which the motor can oppose,
+    costs -(M b)_theta Rm / kt volts (Coulomb friction, the cable's spring; 0 on the
+    nominal model). Subclasses set `name` and `tasks` (the suite tasks it is meant
+    for) and implement `voltage_for`; `reset` is called at the start of each episode.
+
+    Args:
+        control_frequency: control steps per second (Hz) the controller is designed for.
+        voltage_limit: output clip (V).
+        parameters: physical parameters of the model to design for (nominal by default).
+        latency_steps: control steps between an observation and the first sample at which
+            the voltage answering it acts: the domain's `latency_steps` (0 in simulation,
+            1 on hardware).
     """
 
     name: ClassVar[str]
     tasks: ClassVar[tuple[str, ...]]
 
+    def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
+                 parameters: Mapping[str, float] | None = None, latency_steps: int = 0):
+        self.voltage_limit = voltage_limit
+        self.model = RigidBodyModel.from_parameters(parameters)
+        self.observer = StateObserver(self.model, control_frequency, latency_steps)
+
     def reset(self) -> None:
         """Forget everything about the previous episode."""
+        self.observer.reset()
 
     def __call__(self, observation: Any) -> float:
         """Motor voltage (V) for `observation`."""
+        state, target = split_observation(observation)
+        estimate = self.observer(state)
+        unmodelled = self.model.arm_torque(estimate[1], *self.observer.unmodelled_accelerations)
+        volts = self.voltage_for(estimate, target) - unmodelled / self.model.torque_per_volt
+        volts = min(max(volts, -self.voltage_limit), self.voltage_limit)
+        self.observer.command(volts)
+        return volts
+
+    def voltage_for(self, state: np.ndarray, target: float = 0.0) -> float:
+        """Voltage (V, clipped) for `state` [theta, alpha, dtheta, dalpha] and the arm target (rad)."""
         raise NotImplementedError
 
     def close(self) -> None:

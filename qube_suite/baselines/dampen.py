@@ -13,15 +13,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
 
 import numpy as np
 
 from qube_suite.angles import wrap_angle
-from qube_suite.baselines.base import Controller, split_observation
+from qube_suite.baselines.base import Controller
 from qube_suite.baselines.energy import EnergyShaping
 from qube_suite.baselines.lqr import lqr_design
-from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
 
 STATE_WEIGHTS = (2.0, 5.0, 0.05, 0.5)
@@ -33,33 +31,26 @@ HANG_VOLTAGE = 6.0
 class Dampen(Controller):
     """Brings the pendulum to rest hanging with the arm centred, from any state.
 
-    Args:
-        control_frequency: control steps per second (Hz) the LQR is designed for.
-        voltage_limit: output clip (V).
-        parameters: physical parameters of the model to design for (nominal by default).
+    Args: as `Controller`.
     """
 
     name = "dampen"
     tasks = ("dampen", "dampen_sparse")
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
-                 parameters: Mapping[str, float] | None = None):
-        self.voltage_limit = voltage_limit
-        model = RigidBodyModel.from_parameters(parameters)
-        self.shaping = EnergyShaping(model, voltage_limit)
-        self.energy_set = -model.swing_up_energy
+                 parameters: Mapping[str, float] | None = None, latency_steps: int = 0):
+        super().__init__(control_frequency, voltage_limit, parameters, latency_steps)
+        self.shaping = EnergyShaping(self.model, voltage_limit)
+        self.energy_set = -self.model.swing_up_energy
         gain, self.cost_matrix = lqr_design(control_frequency, parameters, STATE_WEIGHTS,
                                             pendulum_angle=math.pi)
         self.gain = gain[0]
         self.hang_level = HANG_VOLTAGE**2 / float(self.gain @ np.linalg.solve(self.cost_matrix, self.gain))
 
-    def voltage_for(self, state: np.ndarray) -> float:
-        """Voltage (V) for `state` [theta, alpha, dtheta, dalpha]."""
+    def voltage_for(self, state: np.ndarray, target: float = 0.0) -> float:
+        """Voltage (V) for `state` [theta, alpha, dtheta, dalpha]; the target is ignored."""
         error = np.array([state[0], wrap_angle(state[1] - math.pi), state[2], state[3]])
         if error @ self.cost_matrix @ error < self.hang_level:
             volts = -float(self.gain @ error)
             return min(max(volts, -self.voltage_limit), self.voltage_limit)
         return self.shaping.voltage(state, self.energy_set)
-
-    def __call__(self, observation: Any) -> float:
-        return self.voltage_for(split_observation(observation)[0])

@@ -23,9 +23,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
 
-from qube_suite.baselines.base import Controller, split_observation
+import numpy as np
+
+from qube_suite.baselines.base import Controller
 from qube_suite.baselines.swingup import SwingUp
 from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
 
@@ -38,25 +39,23 @@ REFERENCE_LIMIT = math.radians(60.0)
 class Follow(Controller):
     """Balances (swinging up first if needed) with the arm following the observed target.
 
-    Args:
-        control_frequency: control steps per second (Hz) the LQR is designed for.
-        voltage_limit: output clip (V).
-        parameters: physical parameters of the model to design for (nominal by default).
+    Args: as `Controller`.
     """
 
     name = "follow"
     tasks = ("balance_follow", "balance_follow_sparse", "swingup_follow", "swingup_follow_sparse")
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
-                 parameters: Mapping[str, float] | None = None):
-        self.voltage_limit = voltage_limit
+                 parameters: Mapping[str, float] | None = None, latency_steps: int = 0):
+        super().__init__(control_frequency, voltage_limit, parameters, latency_steps)
         self.swingup = SwingUp(control_frequency, voltage_limit, parameters)
 
     def reset(self) -> None:
+        super().reset()
         self.swingup.reset()
 
-    def __call__(self, observation: Any) -> float:
-        state, target = split_observation(observation)
+    def voltage_for(self, state: np.ndarray, target: float = 0.0) -> float:
+        """Voltage (V) for `state` [theta, alpha, dtheta, dalpha] with the arm's target at `target` (rad)."""
         return self.swingup.voltage_for(state, arm_set_point(state[0], target))
 
 

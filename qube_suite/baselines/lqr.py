@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
 
 import numpy as np
 import scipy.linalg
 
-from qube_suite.baselines.base import Controller, split_observation
+from qube_suite.baselines.base import Controller
 from qube_suite.baselines.linearization import linearize
 from qube_suite.domains import qube
 from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
@@ -46,20 +45,17 @@ def lqr_gain(control_frequency: float, parameters: Mapping[str, float] | None = 
 class BalanceLQR(Controller):
     """Holds the pendulum upright and the arm at its target with an LQR.
 
-    Args:
-        control_frequency: control steps per second (Hz) the gain is designed for.
-        voltage_limit: output clip (V).
-        parameters: physical parameters of the model to design for (nominal by default).
+    Args: as `Controller`.
     """
 
     name = "balance"
     tasks = ("balance", "balance_sparse", "balance_follow", "balance_follow_sparse")
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
-                 parameters: Mapping[str, float] | None = None):
+                 parameters: Mapping[str, float] | None = None, latency_steps: int = 0):
+        super().__init__(control_frequency, voltage_limit, parameters, latency_steps)
         gain, self.cost_matrix = lqr_design(control_frequency, parameters)
         self.gain = gain[0]
-        self.voltage_limit = voltage_limit
 
     def voltage_for(self, state: np.ndarray, target: float = 0.0) -> float:
         """-K (x - x_target), clipped; `state` is [theta, alpha, dtheta, dalpha]."""
@@ -78,6 +74,3 @@ class BalanceLQR(Controller):
         On the ellipsoid x^T S x = c the largest |K x| is sqrt(c K S^-1 K^T).
         """
         return volts**2 / float(self.gain @ np.linalg.solve(self.cost_matrix, self.gain))
-
-    def __call__(self, observation: Any) -> float:
-        return self.voltage_for(*split_observation(observation))

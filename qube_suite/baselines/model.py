@@ -11,6 +11,12 @@ the arm, the rotor and a uniform rod with a small axial inertia Ja):
     M11 = B + K s^2,  B = Jr + Jm + mp Lr^2 + Ja,  K = mp l^2 + Jp - Ja,
     M12 = -mp Lr l c,  M22 = mp l^2 + Jp,  tau = kt (V - km theta') / Rm.
 
+Solved for the accelerations (`accelerations`), with det = M11 M22 - M12^2 > 0,
+
+    r1 = tau - Dr theta' - 2 K s c theta' alpha' - mp Lr l s alpha'^2,
+    r2 = K s c theta'^2 + mp g l s - Dp alpha',
+    theta'' = (M22 r1 - M12 r2) / det,   alpha'' = (M11 r2 - M12 r1) / det.
+
 Two exact consequences the controllers build on:
 
 * Total energy E = q'^T M q' / 2 + mp g l (cos alpha - 1) (0 at rest upright,
@@ -49,6 +55,8 @@ class RigidBodyModel:
     """mp g l: the largest gravity torque on the pendulum (N m)."""
     arm_damping: float
     """Dr (N m s/rad)."""
+    pendulum_damping: float
+    """Dp (N m s/rad)."""
     torque_per_volt: float
     """kt / Rm (N m/V)."""
     back_emf: float
@@ -69,6 +77,7 @@ class RigidBodyModel:
             pendulum_inertia=mp * half**2 + transverse,
             gravity_torque=mp * p["gravity"] * half,
             arm_damping=p["arm_damping"],
+            pendulum_damping=p["pendulum_damping"],
             torque_per_volt=p["motor_torque_constant"] / p["motor_resistance"],
             back_emf=p["motor_back_emf"],
         )
@@ -88,6 +97,24 @@ class RigidBodyModel:
         """M11 (kg m^2) at pendulum angle `alpha` (rad)."""
         s = math.sin(alpha)
         return self.base_inertia + self.swing_inertia * s * s
+
+    def accelerations(self, alpha: float, dtheta: float, dalpha: float, volts: float) -> tuple[float, float]:
+        """(theta'', alpha'') (rad/s^2) at pendulum angle `alpha` (rad), speeds `dtheta`, `dalpha`
+        (rad/s) and motor voltage `volts` (V): the equations above solved for them."""
+        s, c = math.sin(alpha), math.cos(alpha)
+        swing = self.swing_inertia * s * c
+        m11, m12, m22 = self.arm_inertia(alpha), -self.coupling * c, self.pendulum_inertia
+        torque = self.torque_per_volt * (volts - self.back_emf * dtheta)
+        r1 = (torque - self.arm_damping * dtheta - 2.0 * swing * dtheta * dalpha
+              - self.coupling * s * dalpha * dalpha)
+        r2 = swing * dtheta * dtheta + self.gravity_torque * s - self.pendulum_damping * dalpha
+        det = m11 * m22 - m12 * m12
+        return (m22 * r1 - m12 * r2) / det, (m11 * r2 - m12 * r1) / det
+
+    def arm_torque(self, alpha: float, ddtheta: float, ddalpha: float) -> float:
+        """M11 theta'' + M12 alpha'' (N m): the arm torque that accelerations `ddtheta`, `ddalpha`
+        (rad/s^2) take at pendulum angle `alpha` (rad), the pendulum torque being zero."""
+        return self.arm_inertia(alpha) * ddtheta - self.coupling * math.cos(alpha) * ddalpha
 
     def energy(self, alpha: float, dtheta: float, dalpha: float) -> float:
         """Total energy E (J) of arm and pendulum: 0 at rest upright, -2 mp g l at rest hanging."""

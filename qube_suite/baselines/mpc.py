@@ -23,13 +23,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
 
 import mujoco
 import numpy as np
 from mujoco import rollout
 
-from qube_suite.baselines.base import Controller, split_observation
+from qube_suite.baselines.base import Controller
 from qube_suite.baselines.follow import arm_set_point
 from qube_suite.baselines.lqr import BalanceLQR
 from qube_suite.baselines.swingup import CATCH_VOLTAGE, RELEASE_VOLTAGE
@@ -63,6 +62,7 @@ class SamplingMPC(Controller):
         control_frequency: control steps per second (Hz).
         voltage_limit: largest voltage (V) it plans or outputs.
         parameters: physical parameters of the model it plans with (nominal by default).
+        latency_steps: as `Controller`.
         samples: candidate plans per knot.
         horizon: planning horizon (s).
         knot_interval: time (s) each planned voltage is held; a multiple of the
@@ -78,10 +78,10 @@ class SamplingMPC(Controller):
              "balance", "balance_sparse", "balance_follow", "balance_follow_sparse")
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
-                 parameters: Mapping[str, float] | None = None, samples: int = 16, horizon: float = 0.4,
-                 knot_interval: float = 0.02, planning_timestep: float = 0.02, threads: int = 1,
-                 seed: int = 0):
-        self.voltage_limit = voltage_limit
+                 parameters: Mapping[str, float] | None = None, latency_steps: int = 0, samples: int = 16,
+                 horizon: float = 0.4, knot_interval: float = 0.02, planning_timestep: float = 0.02,
+                 threads: int = 1, seed: int = 0):
+        super().__init__(control_frequency, voltage_limit, parameters, latency_steps)
         self._balance = BalanceLQR(control_frequency, voltage_limit, parameters)
         self._catch_level = self._balance.level_for_voltage(CATCH_VOLTAGE)
         self._release_level = self._balance.level_for_voltage(RELEASE_VOLTAGE)
@@ -106,14 +106,15 @@ class SamplingMPC(Controller):
         self.reset()
 
     def reset(self) -> None:
+        super().reset()
         self._random = np.random.default_rng(self._seed)
         self._plan = np.zeros(self._knots)
         self._next_plan = None
         self._phase = 0
         self._balancing = False
 
-    def __call__(self, observation: Any) -> float:
-        state, target = split_observation(observation)
+    def voltage_for(self, state: np.ndarray, target: float = 0.0) -> float:
+        """Voltage (V) for `state` [theta, alpha, dtheta, dalpha] with the arm's target at `target` (rad)."""
         set_point = arm_set_point(state[0], target)
         level = self._release_level if self._balancing else self._catch_level
         self._balancing = self._balance.cost_to_go(state, set_point) < level

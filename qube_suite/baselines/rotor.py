@@ -12,11 +12,11 @@ within about +-50 degrees; more energy spins faster but swings the arm wider.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
-from qube_suite.baselines.base import Controller, split_observation
+import numpy as np
+
+from qube_suite.baselines.base import Controller
 from qube_suite.baselines.energy import EnergyShaping
-from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
 
 ROTOR_ENERGY = 0.5
@@ -26,22 +26,18 @@ ROTOR_ENERGY = 0.5
 class Rotor(Controller):
     """Keeps the pendulum revolving, arm within +-90 degrees.
 
-    Args:
-        control_frequency: control steps per second (Hz); accepted like every controller's,
-            the law is continuous-time.
-        voltage_limit: output clip (V).
-        parameters: physical parameters of the model to design for (nominal by default).
+    Args: as `Controller` (the law itself is continuous-time).
     """
 
     name = "rotor"
     tasks = ("rotor",)
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
-                 parameters: Mapping[str, float] | None = None):
-        self.voltage_limit = voltage_limit
-        model = RigidBodyModel.from_parameters(parameters)
-        self.shaping = EnergyShaping(model, voltage_limit)
-        self.energy_set = ROTOR_ENERGY * model.swing_up_energy
+                 parameters: Mapping[str, float] | None = None, latency_steps: int = 0):
+        super().__init__(control_frequency, voltage_limit, parameters, latency_steps)
+        self.shaping = EnergyShaping(self.model, voltage_limit)
+        self.energy_set = ROTOR_ENERGY * self.model.swing_up_energy
 
-    def __call__(self, observation: Any) -> float:
-        return self.shaping.voltage(split_observation(observation)[0], self.energy_set)
+    def voltage_for(self, state: np.ndarray, target: float = 0.0) -> float:
+        """Voltage (V) for `state` [theta, alpha, dtheta, dalpha]; the target is ignored."""
+        return self.shaping.voltage(state, self.energy_set)

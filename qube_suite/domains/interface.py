@@ -21,6 +21,16 @@ import numpy as np
 class QubePhysics(Protocol):
     """What a Qube domain provides to tasks and environments."""
 
+    latency_steps: int
+    """Control steps from an observation to the first sample at which the voltage answering
+    it acts: 0 in simulation (a step applies its voltage at once), 1 on hardware (a step
+    reads the next sample, then writes). Controllers predict the state over it
+    (`qube_suite.baselines.for_environment` passes it to them)."""
+
+    physics_error: str | None
+    """Why the last `step` was undone because the simulation diverged, else None (always None on
+    hardware, where faults raise)."""
+
     def arm_angle(self) -> float:
         """Arm angle theta (rad), 0 = centred at the front."""
 
@@ -38,6 +48,10 @@ class QubePhysics(Protocol):
 
     def voltage(self) -> float:
         """Motor voltage (V) applied since the last `set_voltage`."""
+
+    def applied_voltage(self) -> float:
+        """Motor voltage (V) the motor receives: the command after actuator effects (and, on
+        hardware, the board wrapper's clip)."""
 
     def set_voltage(self, volts: float) -> None:
         """Apply a motor voltage (V); callers have validated and limited it."""

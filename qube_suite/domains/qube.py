@@ -20,6 +20,7 @@ from dm_control import mujoco as dm_mujoco
 
 from qube_suite import parameters as params
 from qube_suite.angles import wrap_angle
+from qube_suite.arguments import keywords_of
 
 MODEL_PATH = pathlib.Path(__file__).resolve().parent.parent / "assets" / "qube.xml"
 
@@ -29,6 +30,11 @@ MAX_TIMESTEP = 0.004
 
 MIN_CONTROL_FREQUENCY = 10.0
 MAX_CONTROL_FREQUENCY = 2000.0
+
+MAX_PLAUSIBLE_SPEED = 1e4
+"""Largest |d theta / dt| + |d alpha / dt| (rad/s) of a simulation that has not diverged: 40 times
+the motor's no-load speed at 10 V (238 rad/s). MuJoCo's automatic reset is off in qube.xml, so a
+diverged state stays (huge, inf or NaN) and fails this check."""
 
 
 class Physics(dm_mujoco.Physics):
@@ -41,7 +47,19 @@ class Physics(dm_mujoco.Physics):
     it imperfect, an actuator model (`set_actuator_model`) can alter the voltage
     the motor receives, and a step-duration model (`set_step_duration_model`) can
     perturb how long each `step` lasts.
+
+    A step after which the simulation has diverged (speeds beyond
+    MAX_PLAUSIBLE_SPEED, inf or NaN, e.g. from extreme parameters) is undone: the
+    Qube is put back in the state before it and `physics_error` says what happened,
+    until the next reset.
     """
+
+    latency_steps = 0
+    """A step applies its voltage at once (`interface.QubePhysics.latency_steps`); randomization's
+    `action_delay` adds its steps, unknown to controllers."""
+
+    physics_error: str | None = None
+    """Why the last `step` was undone (the simulation diverged), or None."""
 
     UNMODELLED_PARAMETERS = frozenset({"motor_inductance"})
     """Parameters `set_parameters` records but the simulation does not use: the motor's
@@ -129,6 +147,10 @@ class Physics(dm_mujoco.Physics):
         """Motor voltage (V) commanded by the last `set_voltage`."""
         return self._voltage
 
+    def applied_voltage(self) -> float:
+        """Motor voltage (V) the simulated motor receives: the command after actuator effects."""
+        return float(self._ctrl[0])
+
     def set_voltage(self, volts: float) -> None:
         """Command `volts` to the motor until the next call."""
         self._voltage = volts
@@ -197,15 +219,25 @@ class Physics(dm_mujoco.Physics):
 
     def reset_to(self, state: Sequence[float]) -> None:
         """Set [theta, alpha, dtheta, dalpha] exactly."""
+        self.physics_error = None
         self._set_state(state)
 
     def step(self, nstep: int = 1) -> None:
-        """Advance `nstep` physics timesteps (one MuJoCo call), then measure."""
+        """Advance `nstep` physics timesteps (one MuJoCo call), then measure.
+
+        If the simulation diverges, the step is undone and `physics_error` set.
+        """
+        before = self._exact
         if self._step_duration_model is None:
             mujoco.mj_step(self._model_ptr, self._data_ptr, nstep)
         else:
             self._step_for(self._step_duration_model(nstep * self._options.timestep))
-        self._measure()
+        exact = self._exact_state()
+        if not abs(exact[2]) + abs(exact[3]) < MAX_PLAUSIBLE_SPEED:  # also catches inf and NaN
+            self._undo_step(before, exact)
+            return
+        self._exact = exact
+        self._measured = exact if self._sensor_model is None else self._sensor_model(exact)
 
     def time(self) -> float:
         """Simulated time since the episode started (s)."""
@@ -232,6 +264,7 @@ class Physics(dm_mujoco.Physics):
         measurement."""
         mujoco.mj_resetData(self._model_ptr, self._data_ptr)
         self._restart_actuation()
+        self.physics_error = None
         yield
         mujoco.mj_forward(self._model_ptr, self._data_ptr)
         self._measure_afresh()
@@ -248,17 +281,21 @@ class Physics(dm_mujoco.Physics):
         if hasattr(self._actuator_model, "reset"):
             self._actuator_model.reset(0.0)
 
-    def _measure(self) -> None:
-        exact = self._exact_state()
-        self._measured = exact if self._sensor_model is None else self._sensor_model(exact)
-
     def _measure_afresh(self) -> None:
-        exact = self._exact_state()
+        self._exact = exact = self._exact_state()
         self._measured = exact if self._sensor_reset is None else self._sensor_reset(exact)
+
+    def _undo_step(self, before: tuple[float, float, float, float], diverged: Sequence[float]) -> None:
+        """Put the Qube back in the state `before` a step that diverged, and say so in `physics_error`."""
+        time = self._data_ptr.time
+        self._set_state(before)
+        self._data_ptr.time = time
+        self.physics_error = (f"the simulation diverged at t = {time:.3f} s (state {list(diverged)}); "
+                              "the step was undone")
 
     def _step_for(self, duration: float) -> None:
         nominal_timestep = self._options.timestep
-        nstep = max(1, math.ceil(duration / MAX_TIMESTEP - 1e-9))
+        nstep = physics_steps(duration)
         self._options.timestep = duration / nstep
         try:
             mujoco.mj_step(self._model_ptr, self._data_ptr, nstep)
@@ -352,6 +389,14 @@ def substeps_per_control_period(control_frequency: float) -> int:
     return max(1, math.ceil(1.0 / (control_frequency * MAX_TIMESTEP) - 1e-9))
 
 
+def physics_steps(duration: float | np.ndarray) -> int | np.ndarray:
+    """Fewest equal physics steps covering `duration` (s; or an array of durations) with timesteps of at
+    most MAX_TIMESTEP; the timestep is then `duration / physics_steps(duration)`."""
+    if isinstance(duration, np.ndarray):
+        return np.maximum(1, np.ceil(duration / MAX_TIMESTEP - 1e-9)).astype(np.intp)
+    return max(1, math.ceil(duration / MAX_TIMESTEP - 1e-9))
+
+
 def physics_timestep(control_frequency: float) -> float:
     """Physics timestep (s): the control period divided into `substeps_per_control_period` steps."""
     return 1.0 / (control_frequency * substeps_per_control_period(control_frequency))
@@ -366,6 +411,10 @@ def make_physics(control_frequency: float = 250.0,
     if parameters:
         physics.set_parameters(parameters)
     return physics
+
+
+DOMAIN_KWARGS = keywords_of(make_physics, skip=("control_frequency",))
+"""Keys `suite.load`'s `domain_kwargs` may hold for this domain."""
 
 
 def check_control_frequency(control_frequency: float) -> None:

@@ -7,6 +7,13 @@ value per world as an array, so the tasks' formulas evaluate every world at once
 rollout on a persistent thread pool, which runs without the GIL. World i has its
 own model, so its physical parameters can differ (`set_parameters`); worlds share
 one model until their parameters are changed, which keeps nominal batches in cache.
+
+Like the single `qube.Physics`, a batch takes a sensor, an actuator and a
+step-duration model (`set_sensor_model`, ...): here effects on arrays with one row
+per world (`qube_suite.randomization.BatchChain`), restarted for just the worlds
+that start an episode. With a step-duration model each world's step is split
+into its own number of equal timesteps (at most `qube.MAX_TIMESTEP`), set in its
+own model, and the worlds taking the same number advance in one rollout call.
 """
 
 from __future__ import annotations
@@ -51,14 +58,22 @@ def physics_model(control_frequency: float) -> mujoco.MjModel:
 class QubeBatch:
     """`num_worlds` simulated Qubes with the domain interface's accessors, one value per world.
 
+    Each world's measurement is exact (angles wrapped) unless a sensor model is set.
+    `reset_world` measures the world afresh, as `qube.Physics.reset_to` does, and so
+    does `measure_afresh(worlds)`, as `qube.Physics.reset_context` does on closing:
+    a caller mirroring a single environment's reset calls both, so that a noisy
+    sensor draws what the single environment's draws.
+
     Args:
         num_worlds: number of Qubes.
         control_frequency: control steps per second (Hz); one `step` is one control period.
         threads: threads of the rollout pool; default: the machine's CPU count.
     """
 
+    UNMODELLED_PARAMETERS = qube.Physics.UNMODELLED_PARAMETERS
+
     def __init__(self, num_worlds: int, control_frequency: float = 250.0, threads: int | None = None):
-        if not (isinstance(num_worlds, int) and num_worlds >= 1):
+        if not (isinstance(num_worlds, int) and not isinstance(num_worlds, bool) and num_worlds >= 1):
             raise ValueError(f"num_worlds must be a positive integer, got {num_worlds!r}")
         template = physics_model(control_frequency)
         self.num_worlds = num_worlds
@@ -70,12 +85,14 @@ class QubeBatch:
 
         if threads is None:
             threads = os.cpu_count() or 1
+        if not (isinstance(threads, int) and not isinstance(threads, bool) and threads >= 0):
+            raise ValueError(f"threads must be a non-negative integer or None, got {threads!r}")
         if num_worlds < MIN_WORLDS_PER_THREAD * threads:
             threads = 0
         self._pool = mujoco.rollout.Rollout(nthread=threads)
         self._datas = [mujoco.MjData(template) for _ in range(max(threads, 1))]
 
-        ids = qube.ElementIds(template)
+        ids = self._ids = qube.ElementIds(template)
         self._theta, self._alpha = 1 + ids.arm_qpos, 1 + ids.pendulum_qpos
         self._dtheta, self._dalpha = 1 + template.nq + ids.arm_dof, 1 + template.nq + ids.pendulum_dof
         self._angle_columns = [self._theta, self._alpha]
@@ -88,6 +105,12 @@ class QubeBatch:
         self._trajectory = np.empty((num_worlds, self._substeps, start.size))
         self._control = np.zeros((num_worlds, self._substeps, template.nu))
         self._voltage = np.zeros(num_worlds)
+        self.diverged = np.zeros(num_worlds, dtype=bool)
+        """Which worlds' simulation diverged in the last `step` (that step was undone for them)."""
+        self._worlds = np.arange(num_worlds)
+        self._nominal_durations = np.full(num_worlds, self._substeps * template.opt.timestep)
+        """Each world's control period as the physics steps cover it (s)."""
+        self._sensor_model = self._actuator_model = self._step_duration_model = None
         self._measure()
 
     # -- the domain interface, one value per world ----------------------------------
@@ -112,6 +135,10 @@ class QubeBatch:
         """[theta, alpha, dtheta, dalpha] of each world, shape (num_worlds, 4)."""
         return np.stack(self._measured, axis=1)
 
+    def true_state(self) -> np.ndarray:
+        """Exact [theta, alpha, dtheta, dalpha] of each world, angles wrapped, shape (num_worlds, 4)."""
+        return self._exact(self._worlds)
+
     def time(self) -> np.ndarray:
         """Simulated time of each world since its episode started (s)."""
         return self._state[:, 0]
@@ -123,26 +150,88 @@ class QubeBatch:
     def step(self, volts: np.ndarray) -> None:
         """Hold `volts` (V, one per world, already validated and limited) for one control period.
 
-        All worlds advance in one rollout call; then they are measured.
+        All worlds advance in one rollout call (with a step-duration model, one per number of
+        physics steps); then they are measured. A world whose simulation diverges (speeds
+        beyond `qube.MAX_PLAUSIBLE_SPEED`, inf or NaN) goes back to its state before the
+        step, its time advanced, and is marked in `diverged`.
         """
         self._voltage = volts
-        self._control[:, :, 0] = volts[:, None]
-        self._pool.rollout(self._models, self._datas, self._state, self._control, control_spec=_CONTROL,
-                           skip_checks=True, nstep=self._substeps, state=self._trajectory)
-        self._state[:] = self._trajectory[:, -1]
+        motor = volts if self._actuator_model is None else self._actuator_model(volts)
+        if self._step_duration_model is None:
+            self._control[:, :, 0] = motor[:, None]
+            self._pool.rollout(self._models, self._datas, self._state, self._control, control_spec=_CONTROL,
+                               skip_checks=True, nstep=self._substeps, state=self._trajectory)
+            end = self._trajectory[:, -1]
+            self._undo_diverged(end, self._state)
+            self._state[:] = end
+        else:
+            before = self._state.copy()
+            self._step_for(self._step_duration_model(self._nominal_durations), motor)
+            self._undo_diverged(self._state, before)
         self._measure()
 
     def reset_world(self, world: int, state: Sequence[float]) -> None:
-        """Start `world`'s episode from [theta, alpha, dtheta, dalpha] at time 0, voltage 0 V."""
+        """Start `world`'s episode from [theta, alpha, dtheta, dalpha] at time 0, voltage 0 V.
+
+        Restarts the world's actuator model (at 0 V) and sensor model (from this state).
+        """
         theta, alpha, dtheta, dalpha = (float(x) for x in state)
         row = self._state[world]
         row[0] = 0.0
         row[self._theta], row[self._alpha] = theta, alpha
         row[self._dtheta], row[self._dalpha] = dtheta, dalpha
         self._voltage[world] = 0.0
+        exact = wrap_angle(theta), wrap_angle(alpha), dtheta, dalpha
+        if self._actuator_model is not None or self._sensor_model is not None:
+            exact = self._restart_models(world, exact)
         measured = self._measured
-        measured[0][world], measured[1][world] = wrap_angle(theta), wrap_angle(alpha)
-        measured[2][world], measured[3][world] = dtheta, dalpha
+        measured[0][world], measured[1][world], measured[2][world], measured[3][world] = exact
+
+    def measure_afresh(self, worlds: np.ndarray) -> None:
+        """Measure `worlds` (indices) from their states again, restarting their sensor model."""
+        if self._sensor_model is None:
+            return  # the exact measurement is current: only `step` and `reset_world` move a world
+        measured = self._sensor_model.reset(self._exact(worlds), worlds)
+        for column in range(4):
+            self._measured[column][worlds] = measured[:, column]
+
+    # -- sensor, actuator and step-duration models ------------------------------------
+
+    def set_sensor_model(self, sensor_model) -> None:
+        """Measure through `sensor_model`; None: exactly.
+
+        `sensor_model(exact) -> measured` is called after every `step` with the exact
+        states (num_worlds, 4) (angles wrapped); `sensor_model.reset(exact, rows)`
+        restarts worlds `rows` from their states `exact` (len(rows), 4) whenever a world
+        starts (`reset_world`, `measure_afresh`) and returns their measurements. Setting
+        it restarts it for every world now.
+        """
+        self._sensor_model = sensor_model
+        if sensor_model is None:
+            self._measure()
+        else:
+            measured = sensor_model.reset(self._exact(self._worlds))
+            self._measured = [measured[:, column] for column in range(4)]
+
+    def set_actuator_model(self, actuator_model) -> None:
+        """Drive the motors with `actuator_model(volts) -> volts` on the (num_worlds,) commanded
+        voltages, once per `step`; None: as commanded. `actuator_model.reset(volts, rows)`
+        restarts worlds `rows` at 0 V in `reset_world`; setting it restarts it for every world
+        from the voltages held now."""
+        self._actuator_model = actuator_model
+        if actuator_model is not None:
+            actuator_model.reset(self._voltage.copy())
+
+    def set_step_duration_model(self, step_duration_model) -> None:
+        """Make each world's `step` last `step_duration_model(durations) -> durations` (s, shape
+        (num_worlds,)) instead of the control period; None: nominal. Gives every world a model
+        of its own, whose timestep each step sets as `qube.Physics` does for one Qube."""
+        self._step_duration_model = step_duration_model
+        if step_duration_model is not None:
+            self._options = [self._own_model(world).opt for world in range(self.num_worlds)]
+        else:
+            for model in self._models:
+                model.opt.timestep = self._template.opt.timestep
 
     # -- per-world physical parameters ----------------------------------------------
 
@@ -156,11 +245,8 @@ class QubeBatch:
         Takes effect from the next `step`; the state is kept. Raises ValueError for an
         unknown name or an impossible value (the model is unchanged then).
         """
-        model = self._models[world]
-        if model is self._template:
-            model = copy.copy(self._template)
-        self._parameters[world] = qube.write_parameters(model, self._scratch, overrides)
-        self._models[world] = model
+        self._parameters[world] = qube.write_parameters(self._own_model(world), self._scratch, overrides,
+                                                        self._ids)
 
     def close(self) -> None:
         """Stop the rollout threads."""
@@ -168,7 +254,56 @@ class QubeBatch:
 
     # -- helpers ------------------------------------------------------------------------
 
+    def _undo_diverged(self, after: np.ndarray, before: np.ndarray) -> None:
+        """Mark in `diverged` the worlds whose states `after` a step are implausible and give them
+        back their positions and velocities `before` it (their time stays advanced)."""
+        speeds = np.abs(after[:, self._dtheta]) + np.abs(after[:, self._dalpha])
+        self.diverged = ~(speeds < qube.MAX_PLAUSIBLE_SPEED)  # also catches inf and NaN
+        if self.diverged.any():
+            after[self.diverged, 1:] = before[self.diverged, 1:]
+
+    def _own_model(self, world: int) -> mujoco.MjModel:
+        """`world`'s model, copied from the shared one the first time it needs its own."""
+        if self._models[world] is self._template:
+            self._models[world] = copy.copy(self._template)
+        return self._models[world]
+
+    def _restart_models(self, world: int, exact: tuple[float, ...]) -> tuple[float, ...]:
+        """Restart `world`'s actuator model at 0 V and its sensor model from its `exact` state;
+        return its measurement."""
+        rows = np.array([world])
+        if self._actuator_model is not None:
+            self._actuator_model.reset(np.zeros(1), rows)
+        if self._sensor_model is not None:
+            exact = tuple(self._sensor_model.reset(np.array([exact]), rows)[0].tolist())
+        return exact
+
+    def _step_for(self, durations: np.ndarray, motor: np.ndarray) -> None:
+        """Advance each world by its own duration (s) with its motor voltage (V) held: equal timesteps
+        of at most MAX_TIMESTEP set in its model, as `qube.Physics` does, and one rollout call for the
+        worlds taking the same number of them."""
+        nsteps = qube.physics_steps(durations)
+        for options, timestep in zip(self._options, (durations / nsteps).tolist(), strict=True):
+            options.timestep = timestep
+        for nstep in np.unique(nsteps).tolist():
+            worlds = np.flatnonzero(nsteps == nstep)
+            trajectory = np.empty((len(worlds), nstep, self._state.shape[1]))
+            self._pool.rollout([self._models[world] for world in worlds.tolist()], self._datas,
+                               self._state[worlds], np.repeat(motor[worlds, None, None], nstep, axis=1),
+                               control_spec=_CONTROL, skip_checks=True, nstep=nstep, state=trajectory)
+            self._state[worlds] = trajectory[:, -1]
+
+    def _exact(self, worlds: np.ndarray) -> np.ndarray:
+        """Exact [theta, alpha, dtheta, dalpha] of `worlds`, angles wrapped, shape (len(worlds), 4)."""
+        state = self._state[worlds]
+        return np.concatenate([wrap_angle(state[:, self._angle_columns]), state[:, self._velocity_columns]],
+                              axis=1)
+
     def _measure(self) -> None:
         angles = wrap_angle(self._state[:, self._angle_columns])
         velocities = self._state[:, self._velocity_columns]
-        self._measured = [angles[:, 0], angles[:, 1], velocities[:, 0], velocities[:, 1]]
+        if self._sensor_model is None:
+            self._measured = [angles[:, 0], angles[:, 1], velocities[:, 0], velocities[:, 1]]
+        else:
+            measured = self._sensor_model(np.concatenate([angles, velocities], axis=1))
+            self._measured = [measured[:, column] for column in range(4)]

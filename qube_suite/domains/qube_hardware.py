@@ -15,7 +15,8 @@ What differs from the simulated domain, as on a real Qube:
   50 s/(s + 50) filter (`hardware.estimation`), so they lag by about 20 ms;
 * a step reads the board's next sample and then writes the voltage, as the
   Quanser toolkits do: a voltage takes effect one sample after the observation
-  it answers (the simulated domain has no such latency);
+  it answers (`latency_steps` = 1, which `baselines.for_environment` passes to
+  the controllers, as do the reset controllers; the simulated domain's is 0);
 * randomization effects on the state or the voltage (`set_sensor_model`,
   `set_actuator_model`: noise, delays, dead-zone, ...) apply to what tasks see and
   send; the reset controllers work on the plain estimate. Physical parameters and
@@ -25,7 +26,12 @@ What differs from the simulated domain, as on a real Qube:
   (swing-up with LQR balance) for starts near upright, and for other starts
   (dampen's arbitrary swing) settle, then pump energy until the pendulum swings
   with the energy of the requested start. A start the controllers cannot reach
-  within `reset_timeout` raises `ResetError`.
+  within `reset_timeout` raises `ResetError`;
+* anything that raises during a step or a reset (a safety stop, a board error,
+  Ctrl-C, a failing controller) first stops the motor: the board idles (0 V,
+  amplifier disabled) and the next reset drives again, or, after an encoder
+  glitch, which loses the position reference, the board is closed and the next
+  reset opens it afresh (zeroing the encoders where the Qube is then).
 """
 
 from __future__ import annotations
@@ -39,9 +45,10 @@ from dm_control.rl import control
 
 from qube_suite import baselines
 from qube_suite.angles import wrap_angle
+from qube_suite.arguments import keywords_of
 from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.hardware import conventions
-from qube_suite.hardware.errors import HardwareError
+from qube_suite.hardware.errors import EncoderGlitchError, HardwareError
 from qube_suite.hardware.estimation import StateEstimator
 from qube_suite.hardware.quanser import SIMULATED, QubeServo2
 
@@ -80,6 +87,13 @@ class Physics(control.Physics):
         identifier: the board's number.
     """
 
+    latency_steps = 1
+    """A step reads the next sample, then writes its voltage: the voltage acts one sample after the
+    observation it answers (`interface.QubePhysics.latency_steps`)."""
+
+    physics_error = None
+    """Always None: faults on hardware raise instead (see the README's safety table)."""
+
     def __init__(self, control_frequency: float = 250.0, board: str = SIMULATED,
                  plant: dict[str, float] | None = None, realtime: bool | None = None,
                  max_voltage: float = 10.0, reset_voltage_limit: float = DEFAULT_RESET_VOLTAGE_LIMIT,
@@ -98,6 +112,7 @@ class Physics(control.Physics):
         self._controllers: dict[str, baselines.Controller] = {}
         self._model = RigidBodyModel.from_parameters()
         self._voltage = 0.0
+        self._applied = 0.0
         self._led: tuple[float, float, float] = RESET_LED
         self._estimate: tuple[float, float, float, float] = (0.0, math.pi, 0.0, 0.0)
         self._measured = self._estimate
@@ -137,9 +152,26 @@ class Physics(control.Physics):
         """Motor voltage (V) commanded by the last `set_voltage`."""
         return self._voltage
 
+    @property
+    def max_voltage(self) -> float:
+        """The board wrapper's voltage clip (V): no task may ask for more."""
+        return self.qube.max_voltage
+
     def set_voltage(self, volts: float) -> None:
         """Command `volts` (V); written to the board at the next `step`."""
         self._voltage = volts
+
+    def applied_voltage(self) -> float:
+        """Motor voltage (V) written to the board at the last sample, after actuator effects and the
+        wrapper's clip to `max_voltage`."""
+        return self._applied
+
+    def raw_readings(self) -> dict[str, float]:
+        """The board's readings of the last sample in board units and signs: motor current (A),
+        encoder counts, tachometer (counts/s), and the missed samples since the board opened."""
+        return {"current": float(self.currents[0]), "encoder_arm": int(self.encoders[0]),
+                "encoder_pendulum": int(self.encoders[1]), "tachometer": float(self.others[0]),
+                "missed_samples": self.qube.missed_samples}
 
     def motor_current(self) -> float:
         """Motor current (A) measured by the board at the last sample."""
@@ -164,8 +196,12 @@ class Physics(control.Physics):
     def step(self, nstep: int = 1) -> None:
         """Wait for the next `nstep` samples, writing the commanded voltage at each."""
         volts = self._voltage if self._actuator_model is None else self._actuator_model(self._voltage)
-        for _ in range(nstep):
-            self._sample(volts)
+        try:
+            for _ in range(nstep):
+                self._sample(volts)
+        except BaseException as error:
+            self._stop_after(error)
+            raise
         self._measured = self._estimate if self._sensor_model is None else self._sensor_model(self._estimate)
 
     def set_sensor_model(self, sensor_model) -> None:
@@ -183,13 +219,17 @@ class Physics(control.Physics):
 
     def reset(self) -> None:
         """Get the board ready for an episode: open it the first time, else wake it from idle."""
-        if not self.qube.is_open:
-            self.qube.open()
-            self._estimator.reset()
-            self._sample(0.0)
-            self._measured = self._estimate
-        elif self.qube.is_idle:
-            self.qube.resume()
+        try:
+            if not self.qube.is_open:
+                self.qube.open()
+                self._estimator.reset()
+                self._sample(0.0)
+                self._measured = self._estimate
+            elif self.qube.is_idle:
+                self.qube.resume()
+        except BaseException as error:
+            self._stop_after(error)
+            raise
         self._voltage = 0.0
 
     def after_reset(self) -> None:
@@ -199,14 +239,18 @@ class Physics(control.Physics):
         """Drive the Qube to the episode's start with the reset controllers (see the module docstring)."""
         target_alpha = wrap_angle(float(state[1]))
         self._led = RESET_LED
-        if abs(target_alpha) <= NEAR_GOAL:
-            self._drive("swingup", self._held_upright, "swing up and hold upright")
-        else:
-            self._drive("dampen", self._hanging_at_rest, "settle hanging")
-            if math.pi - abs(target_alpha) > NEAR_GOAL:
-                energy = self._model.energy(target_alpha, float(state[2]), float(state[3]))
-                self._drive("swingup", lambda s: self._model.energy(s[1], s[2], s[3]) >= energy,
-                            "pump the swing", hold=0.0)
+        try:
+            if abs(target_alpha) <= NEAR_GOAL:
+                self._drive("swingup", self._held_upright, "swing up and hold upright")
+            else:
+                self._drive("dampen", self._hanging_at_rest, "settle hanging")
+                if math.pi - abs(target_alpha) > NEAR_GOAL:
+                    energy = self._model.energy(target_alpha, float(state[2]), float(state[3]))
+                    self._drive("swingup", lambda s: self._model.energy(s[1], s[2], s[3]) >= energy,
+                                "pump the swing", hold=0.0)
+        except BaseException as error:
+            self._stop_after(error)
+            raise
         self._voltage = 0.0
         if hasattr(self._actuator_model, "reset"):
             self._actuator_model.reset(0.0)
@@ -240,9 +284,26 @@ class Physics(control.Physics):
 
     # -- helpers ----------------------------------------------------------------------------
 
+    def _stop_after(self, error: BaseException) -> None:
+        """Leave the motor stopped after `error`: the board idles (0 V, amplifier disabled), or is
+        closed after an encoder glitch (the next reset reopens it and zeroes the encoders)."""
+        qube = self.qube
+        if not qube.is_open:
+            return
+        if isinstance(error, EncoderGlitchError):
+            qube.close()
+        elif not qube.is_idle:
+            try:
+                qube.idle()
+            except BaseException:
+                qube.close()
+                raise
+
     def _sample(self, volts: float) -> None:
         self.currents, self.encoders, self.others = self.qube.action(
             [conventions.board_voltage(volts)], led=self._led)
+        limit = self.qube.max_voltage
+        self._applied = -limit if volts < -limit else limit if volts > limit else volts
         theta, alpha, dtheta, dalpha = self._estimator(self.encoders).tolist()
         self._estimate = (theta, alpha, dtheta, dalpha)
         self._samples += 1
@@ -250,7 +311,8 @@ class Physics(control.Physics):
     def _controller(self, name: str) -> baselines.Controller:
         if name not in self._controllers:
             self._controllers[name] = baselines.make(name, control_frequency=self._frequency,
-                                                     voltage_limit=self._reset_voltage_limit)
+                                                     voltage_limit=self._reset_voltage_limit,
+                                                     latency_steps=self.latency_steps)
         return self._controllers[name]
 
     def _drive(self, name: str, done: Callable[[tuple], bool], purpose: str, hold: float = HOLD_TIME) -> None:
@@ -278,6 +340,10 @@ class Physics(control.Physics):
         theta, alpha, dtheta, dalpha = state
         return (math.pi - abs(alpha) < math.radians(3) and abs(theta) < math.radians(10)
                 and abs(dalpha) < 0.3 and abs(dtheta) < 0.3)
+
+
+DOMAIN_KWARGS = keywords_of(Physics, skip=("control_frequency",))
+"""Keys `suite.load`'s `domain_kwargs` may hold for this domain: `Physics`'s options."""
 
 
 def make_physics(control_frequency: float = 250.0, **options: Any) -> Physics:

@@ -14,6 +14,8 @@ filtered velocities from encoder counts), `errors` (safety stops).
 from qube_suite.hardware.errors import (
     AmplifierFaultError,
     ArmLimitError,
+    BoardOpenError,
+    EncoderGlitchError,
     HardwareError,
     MissedSamplesError,
     MotorStallError,
@@ -32,7 +34,8 @@ from qube_suite.hardware.quanser import (
 )
 
 __all__ = [
-    "QUBE_SERVO_2", "QUBE_SERVO_3", "AmplifierFaultError", "ArmLimitError", "Device", "HardwareError",
+    "QUBE_SERVO_2", "QUBE_SERVO_3", "AmplifierFaultError", "ArmLimitError", "BoardOpenError", "Device",
+    "EncoderGlitchError", "HardwareError",
     "MissedSamplesError", "MotorStallError", "QuanserSDKNotFoundError", "QuanserWrapper", "QubeServo2",
     "QubeServo3", "SafetyStopError", "StateEstimator", "VelocityFilter", "WatchdogExpiredError",
 ]

@@ -55,9 +55,27 @@ their expiration states (0 V unless set otherwise), the digital outputs too
 `watchdog_clear` (which leaves the outputs at their expiration states).
 
 For tests and for studying the sim-to-real gap: `true_state()`,
-`set_true_state()`, `applied_voltage`, `amplifier_enabled`, `time`, `led`,
-`plant` and `set_amplifier_fault()` (stands in for the amplifier's thermal
-shutdown); in real-time mode they too catch up with the wall clock first.
+`set_true_state()`, `applied_voltage`, `amplifier_enabled`, `time`, `led` and
+`plant`; in real-time mode they too catch up with the wall clock first.
+
+Faults, injected on purpose to test what drives the board (the README's safety
+table says what the package does about each):
+
+* `set_amplifier_fault(True)`: the amplifier reports a fault (digital input 0)
+  and drives nothing, as in a thermal shutdown, until `set_amplifier_fault(False)`;
+* `glitch_encoder(channel, counts)`: the encoder's count jumps by `counts` and
+  counts on from there, as after electrical noise on its lines;
+* `block_arm(True)`: something holds the arm; with more than `stall_voltage`
+  applied for `stall_time` the amplifier reports a stall error and disables itself;
+* `stall(seconds)`: the control loop stalls: `seconds` of board time pass without
+  a task read (missed samples; the watchdog expires if it is longer than the
+  timeout). In real-time mode it sleeps; in fast mode board time advances;
+* `fail_read(exception, after=0)`: the task read after `after` more reads raises
+  `exception` instead of returning, e.g. KeyboardInterrupt (Ctrl-C while the loop
+  waits for a sample) or an `HILError` (a driver error);
+* module functions `unplug(card_identifier)` and `plug(card_identifier)`: a board
+  that is unplugged fails to open with `HILError` (BOARD_NOT_FOUND) until it is
+  plugged in again; boards already open are not affected.
 """
 
 import math
@@ -95,6 +113,20 @@ CLOCK_IN_USE = -7
 BUFFER_OVERFLOW = -8
 WATCHDOG_EXPIRED = -9
 TOO_MANY_SAMPLES = -10
+BOARD_NOT_FOUND = -11
+
+_UNPLUGGED = set()
+"""Identifiers of the substitute boards that `unplug` disconnected."""
+
+
+def unplug(card_identifier="0"):
+    """Disconnect substitute board `card_identifier`: opening it fails until `plug`."""
+    _UNPLUGGED.add(str(card_identifier))
+
+
+def plug(card_identifier="0"):
+    """Connect substitute board `card_identifier` again after `unplug`."""
+    _UNPLUGGED.discard(str(card_identifier))
 
 cdef enum:                      # digital inputs
     _FAULT = 0
@@ -164,7 +196,7 @@ cdef struct Plant:
     double x[5]         # theta, alpha (unwrapped), dtheta, dalpha, motor current; package signs
     double t            # simulated time (s)
     double stall_timer
-    bint stall_detected, stall_error, fault
+    bint stall_detected, stall_error, fault, arm_blocked
 
 cdef struct Outputs:
     double analog       # analog output 0 as written (V, board sign)
@@ -335,6 +367,9 @@ cdef void _substep(const Params* p, Plant* s, double applied, bint on, double h)
     for j in range(5):
         s.x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
     _coulomb_friction(p, s.x, start, h)
+    if s.arm_blocked:                                   # held: the arm does not move
+        s.x[0] = start[0]
+        s.x[2] = 0.0
     if not on:
         s.x[4] = 0.0
     elif p.Lm > 0.0:
@@ -388,6 +423,8 @@ cdef class HIL:
     cdef double wall_origin
     cdef bint realtime_, is_open
     cdef object lock, plant_overrides, plant_values, card_type, running_task
+    cdef object read_failure
+    cdef long reads_before_failure
 
     def __cinit__(self):
         self.smp.ring = NULL
@@ -421,6 +458,9 @@ cdef class HIL:
             if card_type not in BOARD_TYPES:
                 raise HILError(INVALID_CARD, f"unknown card type {card_type!r}; the substitute offers "
                                               f"{', '.join(BOARD_TYPES)}")
+            if str(card_identifier) in _UNPLUGGED:
+                raise HILError(BOARD_NOT_FOUND, f"no {card_type} board {card_identifier} is connected "
+                                                "(the substitute board was unplugged)")
             values = plant_parameters(card_type, self.plant_overrides)
             self._set_parameters(values)
             self.plant_values = values
@@ -624,6 +664,11 @@ cdef class HIL:
             self._require_task(task)
             if task is not self.running_task:
                 raise HILError(INVALID_TASK, "the task is not running")
+            if self.read_failure is not None:
+                if self.reads_before_failure == 0:
+                    failure, self.read_failure = self.read_failure, None
+                    raise failure
+                self.reads_before_failure -= 1
             if n <= 0 or n > self.smp.capacity:
                 raise HILError(TOO_MANY_SAMPLES, f"can read 1 to {self.smp.capacity} samples, not {n}")
             if not self._wait_for_samples(n):
@@ -765,11 +810,50 @@ cdef class HIL:
                 self.s.x[j] = values[j]
             self.s.x[4] = 0.0
 
+    # -- fault injection (not part of Quanser's API; see the module docstring) ------------
+
     def set_amplifier_fault(self, fault):
         """Raise (True) or clear (False) an amplifier fault, as a thermal shutdown would."""
         with self.lock:
             self._sync()
             self.s.fault = bool(fault)
+
+    def glitch_encoder(self, channel, counts):
+        """Make encoder `channel` (0 arm, 1 pendulum) jump by `counts` and count on from there."""
+        if channel not in (0, 1):
+            raise ValueError(f"encoder channel must be 0 or 1, got {channel!r}")
+        with self.lock:
+            self._sync()
+            self.encoder_offset[channel] += int(counts)
+
+    def block_arm(self, blocked):
+        """Hold the arm still (True), e.g. against an obstacle, or let it go (False)."""
+        with self.lock:
+            self._sync()
+            self.s.arm_blocked = bool(blocked)
+
+    def stall(self, seconds):
+        """Let `seconds` of board time pass without a task read, as a stalled control loop does."""
+        cdef long substeps
+        seconds = float(seconds)
+        if not (math.isfinite(seconds) and seconds >= 0.0):
+            raise ValueError(f"seconds must be a non-negative number, got {seconds}")
+        if self.realtime_:
+            time.sleep(seconds)
+            return
+        with self.lock:
+            self._require_open()
+            substeps = round(seconds / self.h)
+            with nogil:
+                self._advance(substeps)
+
+    def fail_read(self, exception, after=0):
+        """Make the task read after `after` more reads raise `exception` (an exception instance)."""
+        if not isinstance(exception, BaseException) or after < 0:
+            raise ValueError(f"need an exception instance and after >= 0, got {exception!r}, {after!r}")
+        with self.lock:
+            self.read_failure = exception
+            self.reads_before_failure = int(after)
 
     @property
     def applied_voltage(self):

@@ -1,8 +1,10 @@
 """Exceptions of the hardware path.
 
-Every safety stop of `QuanserWrapper` writes 0 V to the motor first and then
-raises one of the `SafetyStopError` subclasses below; none of them is printed and
-ignored. Errors of the board itself are the board's own exception class
+Every safety stop of `QuanserWrapper` writes 0 V to the motor, disables the
+amplifier and stops the watchdog first (the board idles until `resume()`), and
+then raises one of the `SafetyStopError` subclasses below; none of them is
+printed and ignored. A board that cannot be opened raises `BoardOpenError`.
+Other errors of the board itself are the board's own exception class
 (`quanser.hardware.HILError`, or `HILError` of the substitute board).
 """
 
@@ -17,8 +19,12 @@ class QuanserSDKNotFoundError(HardwareError, ImportError):
     """A real board was asked for but Quanser's Python HIL API is not installed."""
 
 
+class BoardOpenError(HardwareError):
+    """The board could not be opened (not connected, not powered, or in use); nothing was driven."""
+
+
 class SafetyStopError(HardwareError):
-    """The wrapper stopped the motor (0 V written) for the reason in the subclass."""
+    """The wrapper stopped the motor (0 V, amplifier disabled) for the reason in the subclass."""
 
 
 class AmplifierFaultError(SafetyStopError):
@@ -39,3 +45,8 @@ class WatchdogExpiredError(SafetyStopError):
 
 class MissedSamplesError(SafetyStopError):
     """More consecutive samples than `max_missed_samples` passed without being read."""
+
+
+class EncoderGlitchError(SafetyStopError):
+    """An encoder count jumped farther between two samples than the Qube can turn: the position
+    reference is lost, so the board must be reopened with the Qube at its start position."""

@@ -22,15 +22,20 @@ closes the board.
 
 Safety: voltages are clipped to +-`max_voltage`. NaN, inf, a wrong shape or a
 non-number, and an invalid LED colour, make the wrapper write 0 V and raise
-ValueError. After each sample, in this order, each of these writes 0 V and
-raises (`errors.py`): the watchdog expired (`WatchdogExpiredError`; the board has
-locked its outputs, reopen it), more than `max_missed_samples` samples passed
-since the last action (`MissedSamplesError`; `missed_samples` counts them all,
-samples before the first action excepted), an amplifier fault
-(`AmplifierFaultError`), a stall error (`MotorStallError`; the amplifier has
-disabled itself, reopen the board), the arm farther than `arm_limit` from where
-it was at `open()` (`ArmLimitError`; raised again at every action until the arm
-is back). The stall warning (digital input 1) is reported by `stall_warning`.
+ValueError without reading a sample (the next valid action drives again). After
+each sample, in this order, each of these stops the motor (0 V, amplifier
+disabled, watchdog stopped: the board idles, `resume()` drives again) and raises
+(`errors.py`): the watchdog expired (`WatchdogExpiredError`), more than
+`max_missed_samples` samples passed since the last action (`MissedSamplesError`;
+`missed_samples` counts them all, samples before the first action excepted), an
+amplifier fault (`AmplifierFaultError`; raised again after `resume()` while it
+lasts), a stall error (`MotorStallError`; disabling the amplifier clears it), an
+encoder count that moved farther since the last sample than `max_encoder_speed`
+allows (`EncoderGlitchError`; the position reference is lost: close, put the Qube
+at its start position and open again), the arm farther than `arm_limit` from
+where it was at `open()` (`ArmLimitError`; raised again after `resume()` until
+the arm is back). A board that cannot be opened raises `BoardOpenError`. The
+stall warning (digital input 1) is reported by `stall_warning`.
 """
 
 from __future__ import annotations
@@ -46,6 +51,8 @@ from qube_suite.hardware import conventions
 from qube_suite.hardware.errors import (
     AmplifierFaultError,
     ArmLimitError,
+    BoardOpenError,
+    EncoderGlitchError,
     MissedSamplesError,
     MotorStallError,
     QuanserSDKNotFoundError,
@@ -55,6 +62,10 @@ from qube_suite.hardware.errors import (
 from qube_suite.hardware.plant import plant_parameters
 
 SIMULATED = "simulated"
+
+MAX_ENCODER_SPEED = 500.0
+"""Default `max_encoder_speed` (rad/s): twice the motor's no-load speed at 10 V (238 rad/s); at
+250 Hz a jump of more than 652 counts between two samples is a glitch."""
 
 SDK_HELP = (
     "Quanser's Python HIL API (the `quanser` package) is not installed. It comes with the Quanser SDK "
@@ -129,13 +140,15 @@ class QuanserWrapper:
     board zeroes its outputs when no action reloads it for this long.
     arm_limit (rad, or None): the largest arm angle from the start.
     max_missed_samples (or None): the largest gap between two actions, in samples.
+    max_encoder_speed (rad/s, or None): the fastest any encoder may turn between two
+        samples; a larger jump of the count is a glitch.
     """
 
     def __init__(self, device: Device, board: str = SIMULATED, identifier: str = "0", *,
                  frequency: float = 250.0, max_voltage: float = 10.0,
                  plant: dict[str, float] | None = None, realtime: bool | None = None,
                  watchdog_timeout: float = 0.1, arm_limit: float | None = math.radians(120.0),
-                 max_missed_samples: int | None = 10):
+                 max_missed_samples: int | None = 10, max_encoder_speed: float | None = MAX_ENCODER_SPEED):
         if board not in (SIMULATED, device.board_type):
             raise ValueError(f"board must be {SIMULATED!r} or {device.board_type!r}, got {board!r}")
         simulated = board == SIMULATED
@@ -151,6 +164,8 @@ class QuanserWrapper:
             raise ValueError(f"arm_limit must be positive or None, got {arm_limit}")
         if max_missed_samples is not None and max_missed_samples < 0:
             raise ValueError(f"max_missed_samples must be >= 0 or None, got {max_missed_samples}")
+        if max_encoder_speed is not None and not (math.isfinite(max_encoder_speed) and max_encoder_speed > 0):
+            raise ValueError(f"max_encoder_speed must be positive or None, got {max_encoder_speed}")
         if simulated:
             plant_parameters(device.board_type, plant)  # a misspelt name fails now, not at open()
         self.device = device
@@ -163,6 +178,7 @@ class QuanserWrapper:
         self.watchdog_timeout = float(watchdog_timeout)
         self.arm_limit = arm_limit
         self.max_missed_samples = max_missed_samples
+        self.max_encoder_speed = max_encoder_speed
         self.missed_samples = 0
         self.stall_warning = False
         self._board: Any = None
@@ -185,6 +201,7 @@ class QuanserWrapper:
         self._stall_at = [d.digital_inputs.index(c) for c in d.stall_error_inputs]
         self._arm_at = None if d.arm_encoder is None else d.encoder_inputs.index(d.arm_encoder)
         self._overflows_seen: int | None = None
+        self._last_counts: list[int] | None = None  # encoder counts of the last sample, for the glitch check
 
     # -- opening and closing ---------------------------------------------------------------
 
@@ -212,9 +229,15 @@ class QuanserWrapper:
         simulated = self.board_name == SIMULATED
         hil_class, clock, overflow_mode = _hil_api(simulated)
         board = hil_class(plant=self.plant, realtime=self.realtime) if simulated else hil_class()
-        board.open(self.device.board_type, self.identifier)
+        try:
+            board.open(self.device.board_type, self.identifier)
+        except Exception as error:
+            raise BoardOpenError(
+                f"could not open the {self.device.board_type} board {self.identifier!r}: {error}; check that "
+                "it is connected and powered and that no other program has it open") from error
         self._board, self._task, self._open, self._idle = board, None, True, False
         self.missed_samples, self.stall_warning, self._overflows_seen = 0, False, None
+        self._last_counts = None
         c = self._channels
         try:
             board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
@@ -272,7 +295,8 @@ class QuanserWrapper:
         """Wait for the next sample, check safety, apply `voltages` (V) and optionally an LED colour.
 
         Returns (currents, encoders, others) of that sample as new arrays, in board
-        units and signs. Raises ValueError or a `SafetyStopError` after writing 0 V.
+        units and signs. Raises ValueError after writing 0 V, or a `SafetyStopError` after
+        stopping the motor (0 V, amplifier disabled: idle).
         """
         board = self._require_open()
         if self._idle:
@@ -282,10 +306,11 @@ class QuanserWrapper:
         board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
         if not board.watchdog_reload():
             self._stop(WatchdogExpiredError(
-                f"the watchdog expired: no action for {self.watchdog_timeout} s; the board zeroed its "
-                "outputs and must be reopened"))
-        self._check_missed_samples(board)
+                f"the watchdog expired: no action for {self.watchdog_timeout} s, so the board zeroed its "
+                "outputs; resume() drives again"))
+        missed = self._check_missed_samples(board)
         self._check_amplifier()
+        self._check_encoders(missed)
         self._check_arm()
         board.write_analog(self._channels["analog_outputs"], len(volts), volts)
         if rgb is not None:
@@ -320,6 +345,7 @@ class QuanserWrapper:
                             np.ones(len(c["digital_outputs"]), dtype=np.int8))
         board.watchdog_start(self.watchdog_timeout)
         self._idle = False
+        self._last_counts = None  # the Qube may have moved while idle
 
     @property
     def is_idle(self) -> bool:
@@ -335,6 +361,7 @@ class QuanserWrapper:
             raise ValueError(f"encoder channels {sorted(unknown)} are not read; "
                              f"valid: {self.device.encoder_inputs}")
         board.set_encoder_counts(chosen, len(chosen), np.zeros(len(chosen), dtype=np.int32))
+        self._last_counts = None
 
     # -- safety ----------------------------------------------------------------------------
 
@@ -350,7 +377,11 @@ class QuanserWrapper:
             board.write_analog(self._channels["analog_outputs"], len(self._zero_volts), self._zero_volts)
 
     def _stop(self, error: SafetyStopError) -> NoReturn:
-        self._zero_voltage()
+        """Stop driving (0 V, amplifier disabled, watchdog stopped: idle) and raise `error`."""
+        try:
+            self.idle()
+        except BaseException as failure:
+            raise error from failure
         raise error
 
     def _refuse(self, message: str) -> NoReturn:
@@ -360,15 +391,17 @@ class QuanserWrapper:
     def _checked_voltages(self, voltages) -> np.ndarray:
         n = len(self._volts)
         try:
-            values = np.asarray(voltages, dtype=np.float64)
+            values = np.asarray(voltages)
         except (TypeError, ValueError):
             self._refuse(f"voltages must be numbers, got {voltages!r}")
+        if values.dtype.kind not in "fiu":  # no text, booleans, complex numbers or objects
+            self._refuse(f"voltages must be real numbers, got {voltages!r} of dtype {values.dtype}")
         if values.shape == () and n == 1:
             values = values.reshape(1)
         if values.shape != (n,):
             self._refuse(f"voltages must have shape ({n},), got {values.shape}")
         limit = self.max_voltage
-        for j, value in enumerate(values.tolist()):
+        for j, value in enumerate(values.astype(np.float64).tolist()):
             if not math.isfinite(value):
                 self._refuse(f"voltages must be finite, got {values}")
             self._volts[j] = -limit if value < -limit else limit if value > limit else value
@@ -384,7 +417,8 @@ class QuanserWrapper:
             self._refuse(f"led must be {len(self.device.led_outputs)} numbers in [0, 1], got {led!r}")
         return rgb
 
-    def _check_missed_samples(self, board) -> None:
+    def _check_missed_samples(self, board) -> int:
+        """Count the samples missed since the last action (returned) and stop if too many."""
         overflows = board.task_get_buffer_overflows(self._task)
         missed = 0 if self._overflows_seen is None else overflows - self._overflows_seen
         self._overflows_seen = overflows
@@ -393,6 +427,7 @@ class QuanserWrapper:
             self._stop(MissedSamplesError(
                 f"{missed} samples at {self.frequency:g} Hz passed between two actions (at most "
                 f"{self.max_missed_samples} allowed); {self.missed_samples} missed since open()"))
+        return missed
 
     def _check_amplifier(self) -> None:
         flags = self._digitals.tolist()
@@ -402,6 +437,23 @@ class QuanserWrapper:
         if any(flags[i] for i in self._stall_at):
             self._stop(MotorStallError("the amplifier reports a motor stall and has disabled itself; reopen "
                                        "the board once the motor is free"))
+
+    def _check_encoders(self, missed: int) -> None:
+        """Stop if a count moved farther since the last sample (`missed` samples ago, plus one)
+        than `max_encoder_speed` allows: more than the Qube can turn."""
+        counts = self._encoders.tolist()
+        last, self._last_counts = self._last_counts, counts
+        if self.max_encoder_speed is None or last is None:
+            return
+        limit = self.max_encoder_speed * (missed + 1) / self.frequency / conventions.RADIANS_PER_COUNT + 1
+        for channel, now, before in zip(self.device.encoder_inputs, counts, last, strict=True):
+            if abs(now - before) > limit:
+                self._last_counts = None
+                self._stop(EncoderGlitchError(
+                    f"encoder {channel} jumped {now - before} counts in {missed + 1} sample(s), more than "
+                    f"{limit:.0f} (max_encoder_speed = {self.max_encoder_speed:g} rad/s): the position "
+                    "reference is lost; close the board, put the Qube at its start position (pendulum "
+                    "hanging, arm centred) and open it again"))
 
     def _check_arm(self) -> None:
         if self.arm_limit is None or self._arm_at is None:

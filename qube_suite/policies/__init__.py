@@ -1,9 +1,9 @@
 """Learned policies, run by numpy (no torch needed): shipped ones by name, others from files.
 
     from qube_suite.policies import load_policy, shipped
-    policy = load_policy("ppo:swingup")              # or a path to a policy file
+    policy = load_policy("ppo:balance")              # or a path to a policy file
     voltage = policy(observation)                    # any observation of the policy's task
-    shipped()                                        # {"ppo:swingup": path, ...}
+    shipped()                                        # {"ppo:balance": path, ...}
 
 Shipped policies are `<algo>_<task>.npz` files beside this module, trained with
 `qube-suite train` (see the README's "Reinforcement learning" section); the file

@@ -19,6 +19,7 @@ class VoltageOffset(Effect):
     name = "voltage_offset"
     signal = "voltage"
     fields = {"voltage": Field("V", "offset added to the command")}
+    per_env_settings = ("voltage",)
 
     def __init__(self, voltage: float | np.ndarray):
         self.voltage = np.asarray(voltage, dtype=np.float64)
@@ -38,6 +39,7 @@ class DeadZone(Effect):
     name = "dead_zone"
     signal = "voltage"
     fields = {"voltage": Field("V", "half-width of the dead band", minimum=0.0)}
+    per_env_settings = ("voltage",)
 
     def __init__(self, voltage: float | np.ndarray):
         self.voltage = np.asarray(voltage, dtype=np.float64)
@@ -56,6 +58,7 @@ class Saturation(Effect):
     name = "saturation"
     signal = "voltage"
     fields = {"voltage": Field("V", "largest output", minimum=0.0, exclusive_minimum=True)}
+    per_env_settings = ("voltage",)
 
     def __init__(self, voltage: float | np.ndarray):
         self.voltage = np.asarray(voltage, dtype=np.float64)

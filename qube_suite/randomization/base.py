@@ -17,17 +17,20 @@ Settings are numbers, or (for n Qubes) arrays with one entry per environment
 along their first axis; memory (delay lines, filter states) then lives in arrays
 shaped by the signal given to `reset`. `effect.reset(x, rows)` restarts only the
 environments `rows` (integer indices) from their signals `x` (first axis
-len(rows)) and returns their outputs; the others keep their memory (a caller
-that redraws per-environment settings writes them into the setting arrays
-first). Both paths give identical numbers; effects never modify their input.
-`Chain` and `BatchChain` apply several effects in order.
+len(rows)) and returns their outputs; the others keep their memory. A caller
+that redraws the settings of some environments gives them to those rows first
+with `effect.set_rows(rows, fresh)`, where `fresh` is the same effect built for
+len(rows) environments. Stochastic effects draw from one generator, or from
+`Streams`, one generator per environment, so that each environment draws the
+numbers its one-Qube path would. Both paths give identical numbers; effects
+never modify their input. `Chain` and `BatchChain` apply several effects in order.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -77,6 +80,8 @@ class Effect:
     signal: ClassVar[str]
     fields: ClassVar[dict[str, Field]]
     stochastic: ClassVar[bool] = False
+    per_env_settings: ClassVar[tuple[str, ...]] = ()
+    """Attributes holding the settings, one entry per environment along their first axis on n Qubes."""
 
     @classmethod
     def complete(cls, settings: dict) -> dict:
@@ -88,6 +93,12 @@ class Effect:
         """The effect for one episode's `settings` at `control_period` (s); stochastic effects
         draw from `rng` (a numpy Generator or RandomState)."""
         return cls(**settings)
+
+    def set_rows(self, rows: np.ndarray, fresh: Effect) -> None:
+        """Give environments `rows` the settings of `fresh`, this effect built for len(rows)
+        environments; their memory restarts at the next `reset(x, rows)`."""
+        for attribute in self.per_env_settings:
+            getattr(self, attribute)[rows] = getattr(fresh, attribute)
 
     def reset_one(self, x):
         return self.output_one(x)
@@ -113,6 +124,43 @@ class Effect:
 def per_env(setting: np.ndarray, rows: np.ndarray | None, shared_ndim: int = 0) -> np.ndarray:
     """`setting`, or its entries for `rows` when it holds one per environment (ndim > `shared_ndim`)."""
     return setting if rows is None or setting.ndim == shared_ndim else setting[rows]
+
+
+class Streams:
+    """One random generator per environment, drawn from as one generator by effects on n Qubes.
+
+    Row i of every draw comes from generator i, so each environment gets the numbers
+    its own generator gives the one-Qube path (`standard_normal(4)`, `random()`).
+    """
+
+    def __init__(self, generators: Sequence[np.random.RandomState]):
+        self.generators = tuple(generators)
+
+    def rows(self, rows: np.ndarray) -> Streams:
+        """The generators of environments `rows`."""
+        return Streams([self.generators[row] for row in rows.tolist()])
+
+    def standard_normal(self, shape: tuple[int, ...]) -> np.ndarray:
+        """Standard normal draws of `shape`, (environments, ...)."""
+        size = shape[1:] or None
+        return _stacked([generator.standard_normal(size) for generator in self.generators], shape)
+
+    def random(self, shape: tuple[int, ...]) -> np.ndarray:
+        """Uniform draws in [0, 1) of `shape`, (environments, ...)."""
+        size = shape[1:] or None
+        return _stacked([generator.random(size) for generator in self.generators], shape)
+
+
+def _stacked(draws: list, shape: tuple[int, ...]) -> np.ndarray:
+    """Each environment's draw (a float, or an array of shape[1:]) in one array of `shape`."""
+    if len(shape) == 1 or not draws:
+        return np.array(draws, dtype=np.float64).reshape(shape)
+    return np.concatenate(draws).reshape(shape)  # far faster than np.array of many small arrays
+
+
+def generator_of(rng, rows: np.ndarray | None):
+    """`rng`, or the generators of `rows` when it holds one per environment (`Streams`)."""
+    return rng.rows(rows) if rows is not None and isinstance(rng, Streams) else rng
 
 
 class Chain:

@@ -19,6 +19,7 @@ class Delay(Effect):
         "steps": Field("control steps", "delay (default 1 step)", optional=True, minimum=0, integer=True),
         "seconds": Field("s", "delay, rounded to whole control steps", optional=True, minimum=0.0),
     }
+    per_env_settings = ("steps",)
 
     @classmethod
     def complete(cls, settings: dict) -> dict:
@@ -41,6 +42,16 @@ class Delay(Effect):
         if smallest < 0:
             raise ValueError(f"{self.name}: steps must be >= 0, got {steps}")
         self._length = largest + 1
+
+    def set_rows(self, rows: np.ndarray, fresh: Delay) -> None:
+        super().set_rows(rows, fresh)
+        length = int(self.steps.max()) + 1
+        if length > self._length and hasattr(self, "_line"):  # lengthen: newest entries kept, oldest repeated
+            oldest_first = np.roll(self._line, -(self._head + 1), axis=0)
+            padding = np.repeat(oldest_first[:1], length - self._length, axis=0)
+            self._line = np.concatenate([padding, oldest_first])
+            self._head = length - 1
+        self._length = max(self._length, length)
 
     def reset_one(self, x):
         self._queue = collections.deque([x] * self._length, maxlen=self._length)

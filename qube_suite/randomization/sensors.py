@@ -11,7 +11,7 @@ import numpy as np
 
 from qube_suite.angles import TAU, wrap_angle
 from qube_suite.parameters import ENCODER_COUNTS_PER_REVOLUTION
-from qube_suite.randomization.base import Effect, Field, per_env
+from qube_suite.randomization.base import Effect, Field, generator_of, per_env
 
 
 class Quantization(Effect):
@@ -22,6 +22,7 @@ class Quantization(Effect):
     signal = "state"
     fields = {"counts_per_revolution": Field("counts/rev", "encoder counts per revolution",
                                              default=ENCODER_COUNTS_PER_REVOLUTION, minimum=1, integer=True)}
+    per_env_settings = ("resolution",)
 
     def __init__(self, counts_per_revolution: int | np.ndarray = ENCODER_COUNTS_PER_REVOLUTION):
         self.resolution = TAU / np.asarray(counts_per_revolution, dtype=np.float64)
@@ -57,6 +58,7 @@ class VelocityFilter(Effect):
     signal = "state"
     fields = {"cutoff": Field("rad/s", "filter bandwidth a", default=50.0,
                               minimum=0.0, exclusive_minimum=True)}
+    per_env_settings = ("pole", "gain")
 
     @classmethod
     def from_settings(cls, settings: Mapping, control_period: float, rng) -> VelocityFilter:
@@ -107,6 +109,7 @@ class ObservationNoise(Effect):
     stochastic = True
     fields = {"std": Field("rad, rad, rad/s, rad/s", "standard deviation of each component",
                            minimum=0.0, size=4)}
+    per_env_settings = ("std",)
 
     @classmethod
     def from_settings(cls, settings: Mapping, control_period: float, rng) -> ObservationNoise:
@@ -123,6 +126,7 @@ class ObservationNoise(Effect):
         return [wrap_angle(x[0] + s0 * n0), wrap_angle(x[1] + s1 * n1), x[2] + s2 * n2, x[3] + s3 * n3]
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
-        y = x + per_env(self.std, rows, shared_ndim=1) * self._rng.standard_normal(x.shape)
+        noise = generator_of(self._rng, rows).standard_normal(x.shape)
+        y = x + per_env(self.std, rows, shared_ndim=1) * noise
         y[..., :2] = wrap_angle(y[..., :2])
         return y

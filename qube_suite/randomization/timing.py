@@ -6,7 +6,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from qube_suite.randomization.base import Effect, Field, per_env
+from qube_suite.randomization.base import Effect, Field, generator_of, per_env
 
 
 class ControlJitter(Effect):
@@ -19,6 +19,7 @@ class ControlJitter(Effect):
     stochastic = True
     fields = {"fraction": Field("of the period", "largest relative change of a step's duration",
                                 minimum=0.0, maximum=0.5)}
+    per_env_settings = ("fraction",)
 
     @classmethod
     def from_settings(cls, settings: Mapping, control_period: float, rng) -> ControlJitter:
@@ -33,4 +34,5 @@ class ControlJitter(Effect):
         return x * (1.0 + self._fraction * (2.0 * self._rng.random() - 1.0))
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
-        return x * (1.0 + per_env(self.fraction, rows) * (2.0 * self._rng.random(np.shape(x)) - 1.0))
+        draws = generator_of(self._rng, rows).random(np.shape(x))
+        return x * (1.0 + per_env(self.fraction, rows) * (2.0 * draws - 1.0))

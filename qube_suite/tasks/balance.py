@@ -63,8 +63,23 @@ class BalanceFollow(Balance):
     """Balance while the arm follows a moving target.
 
     As `Balance`, with the arm's goal theta_target ~ U(-80, 80) degrees, redrawn
-    at random moments (about twice a second) and at every reset. The observation
-    adds `target` = [theta_target] (rad); the reward uses theta - theta_target.
+    at random moments (about twice a second) and at every reset.
+
+    ## Observation
+    `state` as `Balance`, plus `target` = [theta_target] (rad, within +-80 degrees);
+    flattened for Gymnasium as [theta, alpha, dtheta, dalpha, theta_target].
+
+    ## Reward
+    As `Balance` with theta - theta_target in place of theta (dense and sparse).
+
+    ## Start
+    Near upright, as `Balance`; the target is drawn at reset.
+
+    ## Episode end
+    As `Balance`: the arm's +-90 degree limit is absolute, not relative to the target.
+
+    ## Arguments
+    `sparse`, `voltage_limit`, `observation`, `random`.
     """
 
     follows_target = True

@@ -72,7 +72,8 @@ class QubeTask(base.Task):
 
     def __init__(self, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT, observation: str = "state",
                  random: int | np.random.RandomState | None = None):
-        if not (isinstance(voltage_limit, (int, float)) and 0.0 < voltage_limit <= MAX_VOLTAGE_LIMIT):
+        if not (isinstance(voltage_limit, (int, float)) and not isinstance(voltage_limit, bool)
+                and 0.0 < voltage_limit <= MAX_VOLTAGE_LIMIT):
             raise ValueError(f"voltage_limit must be in (0, {MAX_VOLTAGE_LIMIT:g}] V, got {voltage_limit!r}")
         if observation not in OBSERVATION_MODES:
             raise ValueError(f"observation must be one of {OBSERVATION_MODES}, got {observation!r}")

@@ -60,8 +60,23 @@ class SwingupFollow(Swingup):
     """Swing up and balance while the arm follows a moving target.
 
     As `Swingup`, with the arm's goal theta_target ~ U(-80, 80) degrees, redrawn
-    at random moments (about twice a second) and at every reset. The observation
-    adds `target` = [theta_target] (rad); the reward uses theta - theta_target.
+    at random moments (about twice a second) and at every reset.
+
+    ## Observation
+    `state` as `Swingup`, plus `target` = [theta_target] (rad, within +-80 degrees);
+    flattened for Gymnasium as [theta, alpha, dtheta, dalpha, theta_target].
+
+    ## Reward
+    As `Swingup` with theta - theta_target in place of theta (dense and sparse).
+
+    ## Start
+    Hanging at rest, as `Swingup`; the target is drawn at reset.
+
+    ## Episode end
+    As `Swingup`: the arm's +-90 degree limit is absolute, not relative to the target.
+
+    ## Arguments
+    `sparse`, `voltage_limit`, `observation`, `random`.
     """
 
     follows_target = True

@@ -7,14 +7,13 @@ import sys
 from typing import Any
 
 import gymnasium
-import mujoco
 import numpy as np
 from gymnasium import spaces
 
 from qube_suite.environment import Environment
+from qube_suite.media import DEFAULT_CAMERA, FrameRenderer
 
 RENDER_MODES = ("human", "rgb_array")
-DEFAULT_CAMERA = "front_oblique"
 
 
 def display_available() -> bool:
@@ -52,21 +51,36 @@ class QubeEnv(gymnasium.Env):
     (-pi, pi], alpha = 0 upright. With `observation="trig"`: [cos theta, sin theta,
     cos alpha, sin alpha, dtheta, dalpha] (+ target).
 
+    ## Reward and start
+    The task's: see its class docstring (e.g. `help(qube_suite.tasks.Swingup)`) and
+    the README's task table. Rewards are per step, at most 1.
+
     ## Episode end
     `terminated` when the task's safe set is left (arm beyond +-90 degrees, and in
-    balance tasks the pendulum beyond +-20 degrees); `truncated` at the time limit.
-    Stepping after either without `reset()` raises RuntimeError.
+    balance tasks the pendulum beyond +-20 degrees), or when the simulation
+    diverged (reward 0, `info["physics_error"]`); `truncated` at the time limit.
+    Stepping after either, or after a step that raised (e.g. a hardware safety
+    stop), without `reset()` raises RuntimeError.
 
     ## Info
-    `time` (s), `voltage` (V, as commanded after clipping), `target` (rad, follow tasks).
+    `time` (s), `voltage` (V, as commanded after clipping), `target` (rad, follow tasks),
+    and `physics_error` (a message) in the step where the simulation diverged.
     With a randomization, `reset` adds what the episode drew: `parameters` (name ->
     value of each randomized physical parameter) and `effects` (effect name ->
     settings).
 
     ## Rendering
     `render_mode="rgb_array"` returns frames from `camera` ("front_oblique",
-    "front" or "top") of `width` x `height`; `"human"` opens MuJoCo's viewer
-    (offered only where a display exists).
+    "front" or "top") of `width` x `height` (`qube_suite.media.FrameRenderer`; the
+    LED strip shows the LED's colour, and on hardware a digital twin shows the
+    measured state); `"human"` opens MuJoCo's viewer (offered only where a display
+    exists).
+
+    Args:
+        environment: a qube_suite dm_env environment (`suite.load`).
+        render_mode: None, "rgb_array" or "human".
+        width, height: frame size (pixels) for "rgb_array".
+        camera: the camera for "rgb_array".
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 250}
@@ -80,12 +94,9 @@ class QubeEnv(gymnasium.Env):
                              "use render_mode='rgb_array' to get frames offscreen")
         self.environment = environment
         self.render_mode = render_mode
-        self._render_size = (int(height), int(width))
-        self._camera = camera
+        self._frames = FrameRenderer(camera, int(width), int(height)) if render_mode == "rgb_array" else None
         self._viewer = None
-        self._renderer = None
         self._closed = False
-        self._episode_over = True
         self._follows_target = getattr(environment.task, "follows_target", False)
         self.metadata = {
             "render_modes": [mode for mode in RENDER_MODES if mode != "human" or display_available()],
@@ -106,10 +117,7 @@ class QubeEnv(gymnasium.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Start an episode; `seed` reseeds the task's random state (same seed, same episode)."""
         super().reset(seed=seed)
-        if seed is not None:
-            self.environment.task.random.seed(seed)
-        self.environment.start_episode()
-        self._episode_over = False
+        self.environment.start_episode(seed)
         if self.render_mode == "human":
             self.render()
         info = self._info()
@@ -119,25 +127,23 @@ class QubeEnv(gymnasium.Env):
         return self._observation(), info
 
     def step(self, action):
-        if self._episode_over:
+        if self.environment.needs_reset:
             raise RuntimeError("the episode has ended; call reset() before step()")
         reward, discount = self.environment.advance(action)
         terminated = discount == 0.0
         truncated = discount == 1.0
-        self._episode_over = discount is not None
         if self.render_mode == "human":
             self.render()
-        return self._observation(), reward, terminated, truncated, self._info()
+        info = self._info()
+        if terminated and self.environment.physics_error is not None:
+            info["physics_error"] = self.environment.physics_error
+        return self._observation(), reward, terminated, truncated, info
 
     def render(self):
-        scene = self.physics.drawable()
         if self.render_mode == "rgb_array":
-            if self._renderer is None:
-                height, width = self._render_size
-                self._renderer = mujoco.Renderer(scene.model.ptr, height, width)
-            self._renderer.update_scene(scene.data.ptr, camera=self._camera)
-            return self._renderer.render()
+            return self._frames.render(self.physics)
         if self.render_mode == "human":
+            scene = self.physics.drawable()
             if self._viewer is None:
                 from mujoco import viewer
 
@@ -149,9 +155,8 @@ class QubeEnv(gymnasium.Env):
         if self._viewer is not None:
             self._viewer.close()
             self._viewer = None
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
+        if self._frames is not None:
+            self._frames.close()
         if not self._closed:
             self._closed = True
             self.environment.close()

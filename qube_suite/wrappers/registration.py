@@ -7,6 +7,7 @@ from typing import Any
 import gymnasium
 
 from qube_suite import suite
+from qube_suite.arguments import check_keywords, keywords_of
 from qube_suite.wrappers.gym_env import QubeEnv
 from qube_suite.wrappers.vector_env import make_vector_env
 
@@ -19,6 +20,8 @@ DOMAIN_SUFFIXES = {"qube": "", "qube_hardware": "Hardware"}
 
 def gymnasium_id(task_name: str, domain_name: str = "qube") -> str:
     """`QubeSuite/SwingupSparse-v0` for ("swingup_sparse", "qube"); `...Hardware-v0` on hardware."""
+    if domain_name not in DOMAIN_SUFFIXES:
+        raise ValueError(f"unknown domain {domain_name!r}; valid domains: {', '.join(DOMAIN_SUFFIXES)}")
     task = "".join(part.capitalize() for part in task_name.split("_"))
     return f"{NAMESPACE}/{task}{DOMAIN_SUFFIXES[domain_name]}-v0"
 
@@ -37,8 +40,11 @@ def make_env(task: str, domain: str = "qube", render_mode: str | None = None, ra
     """Entry point of the registered ids.
 
     `kwargs` go to the environment (`control_frequency`, `time_limit`) or the task
-    (`voltage_limit`, `observation`, ...); `domain_kwargs` as in `suite.load`.
+    (`voltage_limit`, `observation`, `random`); `domain_kwargs` as in `suite.load`. An
+    unknown keyword is a ValueError listing the valid ones.
     """
+    valid = keywords_of(make_env, skip=("task", "domain")) + suite.ENVIRONMENT_KWARGS + suite.TASK_KWARGS
+    check_keywords(kwargs, valid, f"keyword arguments for {gymnasium_id(task, domain)}")
     environment_kwargs = {key: kwargs.pop(key) for key in suite.ENVIRONMENT_KWARGS if key in kwargs}
     environment = suite.load(domain, task, task_kwargs=kwargs, environment_kwargs=environment_kwargs,
                              randomization=randomization, domain_kwargs=domain_kwargs)

@@ -10,7 +10,9 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
+from qube_suite import randomization as randomization_
 from qube_suite import suite
+from qube_suite.arguments import check_keywords, keywords_of
 from qube_suite.domains.qube_batch import QubeBatch
 from qube_suite.environment import DEFAULT_CONTROL_FREQUENCY, DEFAULT_TIME_LIMIT, episode_steps
 from qube_suite.wrappers.gym_env import action_space, observation_space
@@ -36,6 +38,10 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
     clipped; NaN/inf, a wrong shape or a non-number raise ValueError before any
     world moves.
 
+    ## Reward, start and episode end
+    Each world's are the task's, as in the single environment (the task classes'
+    docstrings, e.g. `help(qube_suite.tasks.Swingup)`, and the README's table).
+
     ## Seeding
     `reset(seed=s)` seeds world i with s + i (like `SyncVectorEnv`); `seed=[s_0,
     ...]` seeds each world (None: not reseeded). The task keyword `random=s` seeds
@@ -52,9 +58,26 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
     * DISABLED: reset ended worlds with `reset(options={"reset_mask": mask})`;
       stepping an ended world raises RuntimeError.
 
+    ## Randomization
+    `randomization=` takes what a single environment takes (preset name, config
+    mapping, YAML path, `Randomization`). A world starting an episode draws its
+    physical parameters and effect settings from its task random state, exactly as a
+    single environment does, into its own model and its rows of the effects, which
+    run on all worlds at once with per-world memory and noise. Control-period jitter
+    gives each world its own timestep (see `QubeBatch`). World i seeded s still plays
+    exactly the episodes of `gymnasium.make(id, randomization=...)` seeded s.
+
     ## Info
-    `time` (s) and `voltage` (V, as applied) of each world, `target` (rad) in follow
-    tasks, each with Gymnasium's `_key` mask.
+    `time` (s) and `voltage` (V, as commanded after clipping) of each world, `target`
+    (rad) in follow tasks, each with Gymnasium's `_key` mask. With a randomization,
+    the worlds that started an episode in the call (all at `reset`, the restarted ones
+    at `step`) add what they drew, as their single environment's reset info does:
+    `parameters` (name -> array over worlds) and `effects` (effect name -> setting ->
+    array), nested in Gymnasium's vector-info convention (what `SyncVectorEnv` gives)
+    with masks `_parameters`, `_effects` and inner ones marking those worlds. In a
+    step where the simulation of some worlds diverged, `physics_error` (bool per
+    world) marks them: each such world terminates with reward 0 and the observation
+    of its state before that step.
 
     Args:
         task: suite task name, e.g. "swingup".
@@ -64,9 +87,11 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         time_limit: episode length (s).
         threads: rollout threads; default: the CPU count (small batches use none).
         reset_hook: called as `hook(batch, world, random)` when a world starts an
-            episode, before the task draws its start, e.g. to set that world's
-            physical parameters with `batch.set_parameters(world, ...)`.
-        randomization: not available in this release; anything but None raises ValueError.
+            episode, after any randomization's draws and before the task draws its
+            start, e.g. to set that world's physical parameters with
+            `batch.set_parameters(world, ...)` (which replaces drawn ones).
+        randomization: None, or a preset name, config mapping, YAML file path or
+            `qube_suite.randomization.Randomization`, drawn per world at every start.
         **task_kwargs: `voltage_limit`, `observation`, `random` (seed).
     """
 
@@ -75,17 +100,25 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
                  control_frequency: float = DEFAULT_CONTROL_FREQUENCY, time_limit: float = DEFAULT_TIME_LIMIT,
                  threads: int | None = None, reset_hook: ResetHook | None = None, randomization: Any = None,
                  render_mode: str | None = None, **task_kwargs):
-        if randomization is not None:
-            raise ValueError("randomization is not available in this release of qube_suite; pass None")
         if render_mode is not None:
             raise ValueError("the vector environment does not render; make a single environment to watch one")
+        if not (isinstance(num_envs, int) and not isinstance(num_envs, bool) and num_envs >= 1):
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        check_keywords(task_kwargs, keywords_of(QubeVectorEnv, skip=("task", "num_envs")) + suite.TASK_KWARGS,
+                       f"keyword arguments for the vector environment of {task!r}")
+        modes = [mode.value for mode in AutoresetMode]
+        if autoreset_mode not in [*AutoresetMode, *modes]:
+            raise ValueError(f"unknown autoreset_mode {autoreset_mode!r}; valid: {', '.join(modes)}")
         self.autoreset_mode = AutoresetMode(autoreset_mode)
         seed = task_kwargs.pop("random", None)
         if not (seed is None or isinstance(seed, int)):
             raise ValueError(f"random must be an integer seed or None for a vector environment, got {seed!r}")
         self._task = suite.make_task("qube", task, task_kwargs)
         self._steps_per_episode = episode_steps(time_limit, control_frequency)
+        config = None if randomization is None else randomization_.load(randomization)
         self._batch = QubeBatch(num_envs, control_frequency, threads)
+        self._randomizer = None if config is None else randomization_.BatchRandomizer(
+            config, self._batch, 1.0 / control_frequency)
         self._reset_hook = reset_hook
         self._randoms = [np.random.RandomState(None if seed is None else seed + i) for i in range(num_envs)]
         self._task.use_batch(self._randoms)
@@ -112,6 +145,11 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         return self._batch
 
     @property
+    def randomization(self) -> randomization_.Randomization | None:
+        """The randomization each world draws from when it starts an episode, or None."""
+        return None if self._randomizer is None else self._randomizer.config
+
+    @property
     def task(self):
         """The task, evaluating all worlds at once."""
         return self._task
@@ -131,14 +169,14 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         for world in worlds.tolist():
             if seeds[world] is not None:
                 self._randoms[world].seed(seeds[world])
-            self._start(world)
+        draws = self._start(worlds)
         observations = self._observations()
         info = self._info()
         if len(worlds) < self.num_envs:
             started = np.zeros(self.num_envs, dtype=bool)
             started[worlds] = True
             info = {key: (started if key.startswith("_") else value) for key, value in info.items()}
-        return observations, info
+        return observations, self._with_draws(info, draws)
 
     def step(self, actions):
         """Apply one voltage per world for one control period; see the class docstring for autoreset."""
@@ -154,12 +192,14 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         batch, task = self._batch, self._task
         batch.step(volts)
         self._step_counts += 1
-        if restarting is not None:
-            for world in np.flatnonzero(restarting).tolist():
-                self._start(world)
+        diverged = batch.diverged if restarting is None else batch.diverged & ~restarting
+        draws = {} if restarting is None else self._start(np.flatnonzero(restarting))
         task.after_step(batch)
         rewards = task.get_reward(batch)
         terminated = ~task.in_safe_set(batch)
+        if diverged.any():
+            rewards[diverged] = 0.0
+            terminated |= diverged
         truncated = self._step_counts >= self._steps_per_episode
         truncated &= ~terminated
         if restarting is not None:
@@ -167,9 +207,13 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
             terminated[restarting] = truncated[restarting] = False
         self._ended = terminated | truncated
         observations = self._observations()
-        info = self._info()
+        info = self._with_draws(self._info(), draws)
+        if diverged.any():
+            info["physics_error"], info["_physics_error"] = diverged, diverged
         if self.autoreset_mode is AutoresetMode.SAME_STEP and self._ended.any():
             observations, info = self._restart_ended(observations, info)
+            if diverged.any():  # in final_info, and here too, as in the other modes
+                info["physics_error"], info["_physics_error"] = diverged, diverged
         return observations, rewards, terminated, truncated, info
 
     def close_extras(self, **kwargs) -> None:
@@ -188,13 +232,20 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
                              f"got {seed!r}")
         return seeds
 
-    def _start(self, world: int) -> None:
-        random = self._randoms[world]
-        if self._reset_hook is not None:
-            self._reset_hook(self._batch, world, random)
-        self._task.start_episode(self._batch, random, world)
-        self._step_counts[world] = 0
-        self._ended[world] = False
+    def _start(self, worlds: np.ndarray) -> dict[int, randomization_.Sample]:
+        """Start episodes in `worlds`; returns what each world's randomization drew."""
+        draws = {}
+        for world in worlds.tolist():
+            random = self._randoms[world]
+            if self._randomizer is not None:
+                draws[world] = self._randomizer.start_world(world, random)
+            if self._reset_hook is not None:
+                self._reset_hook(self._batch, world, random)
+            self._task.start_episode(self._batch, random, world)
+        self._batch.measure_afresh(worlds)  # as a single environment's reset context does on closing
+        self._step_counts[worlds] = 0
+        self._ended[worlds] = False
+        return draws
 
     def _volts(self, actions) -> np.ndarray:
         try:
@@ -220,16 +271,21 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
             info["target"], info["_target"] = np.array(self._task.target), every
         return info
 
+    def _with_draws(self, info: dict, draws: dict[int, randomization_.Sample]) -> dict:
+        """`info` with each world's draws added as its single environment's reset info has them."""
+        for world, drawn in draws.items():
+            self._add_info(info, {"parameters": drawn.parameters, "effects": drawn.effects}, world)
+        return info
+
     def _restart_ended(self, observations: np.ndarray, info: dict) -> tuple[np.ndarray, dict]:
         ended = self._ended.copy()
         final_obs = np.full(self.num_envs, None, dtype=object)
         for world in np.flatnonzero(ended).tolist():
             final_obs[world] = observations[world]
         final_info = {key: (ended if key.startswith("_") else value) for key, value in info.items()}
-        for world in np.flatnonzero(ended).tolist():
-            self._start(world)
+        draws = self._start(np.flatnonzero(ended))
         observations = self._observations()
-        info = self._info()
+        info = self._with_draws(self._info(), draws)
         info.update(final_obs=final_obs, _final_obs=ended, final_info=final_info, _final_info=ended)
         return observations, info
 

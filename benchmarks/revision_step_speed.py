@@ -1,0 +1,92 @@
+"""Gymnasium step speed of two versions of qube_suite, measured interleaved in one run.
+
+    python benchmarks/revision_step_speed.py 4ddcb67            # that commit against this tree
+    python benchmarks/revision_step_speed.py 4ddcb67 HEAD --env QubeSuite/Balance-v0
+
+Each version is exported (`git archive`; the working tree for "."), and rounds of
+timed steps alternate between them, each in a fresh subprocess, so that load from
+other processes on a shared machine falls on both alike. Steps are timed in CPU
+time of the process (`time.process_time`), which other processes' share of a busy
+machine does not inflate as it does wall time. Prints the best and the median CPU
+time per step of each version and their ratio. Only the pure-Python parts
+are compared: the simulated domain needs no compiled extension.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+import statistics
+import subprocess
+import sys
+import tempfile
+
+REPOSITORY = pathlib.Path(__file__).resolve().parent.parent
+
+TIMER = """
+import sys, time
+import gymnasium, numpy as np
+import qube_suite
+env = gymnasium.make(sys.argv[1])
+steps = int(sys.argv[2])
+action = np.zeros(1, np.float32)
+env.reset(seed=0)
+for _ in range(2000):                                 # warm up
+    if env.step(action)[3]:
+        env.reset(seed=0)
+best = float("inf")
+for _ in range(5):
+    env.reset(seed=0)
+    start = time.process_time()
+    for _ in range(steps):
+        env.step(action)
+    best = min(best, (time.process_time() - start) / steps)
+print(best)
+"""
+
+
+def export(revision: str, folder: pathlib.Path) -> pathlib.Path:
+    """The package source of `revision` ("." is the working tree) as an importable folder."""
+    if revision == ".":
+        return REPOSITORY
+    target = folder / revision.replace("/", "_")
+    target.mkdir()
+    archive = subprocess.run(["git", "-C", str(REPOSITORY), "archive", revision, "qube_suite"],
+                             check=True, capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(target)], input=archive, check=True)
+    return target
+
+
+def seconds_per_step(source: pathlib.Path, env_id: str, steps: int) -> float:
+    """Best of five timed runs of `steps` steps with the package at `source`, in a new process."""
+    result = subprocess.run([sys.executable, "-c", TIMER, env_id, str(steps)], check=True,
+                            capture_output=True, text=True, cwd=source,
+                            env={"PYTHONPATH": str(source), "MUJOCO_GL": "disable"})
+    return float(result.stdout.split()[-1])
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("before", help="git revision to compare against")
+    parser.add_argument("after", nargs="?", default=".", help="git revision, or . for the working tree")
+    parser.add_argument("--env", default="QubeSuite/Swingup-v0", help="Gymnasium id")
+    parser.add_argument("--rounds", type=int, default=7, help="alternating rounds (default: 7)")
+    parser.add_argument("--steps", type=int, default=2000, help="steps per timed run (episode length)")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as folder:
+        sources = {name: export(name, pathlib.Path(folder)) for name in (args.before, args.after)}
+        times: dict[str, list[float]] = {name: [] for name in sources}
+        for _ in range(args.rounds):
+            for name, source in sources.items():
+                times[name].append(seconds_per_step(source, args.env, args.steps))
+    for name, values in times.items():
+        print(f"{name:>12}: best {min(values) * 1e6:6.2f} us/step (CPU), "
+              f"median {statistics.median(values) * 1e6:6.2f}")
+    before, after = (min(times[name]) for name in sources)
+    print(f"{args.env}: {args.after} takes {after / before:.3f} x the time of {args.before} per step")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
