@@ -19,6 +19,7 @@ import json
 from qube_suite import evaluate
 from qube_suite.policies import load_policy, shipped
 
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=20)

@@ -123,7 +123,8 @@ def _add_policy_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_mutually_exclusive_group(required=True)
     group.add_argument("--controller", help="a controller or shipped policy of 'qube-suite list', e.g. mpc, "
                                             "balance or ppo:balance")
-    group.add_argument("--policy", metavar="FILE.npz", help="a learned policy file ('qube-suite train' writes them)")
+    group.add_argument("--policy", metavar="FILE.npz",
+                       help="a learned policy file ('qube-suite train' writes them)")
 
 
 def _make_policy(args: argparse.Namespace, environment: Any) -> tuple[Any, str]:
@@ -434,7 +435,8 @@ def _add_train(commands) -> None:
                           help="evaluations of the deterministic policy during training (default: 20)")
     training.add_argument("--eval-episodes", type=_positive_int, default=8,
                           help="episodes per evaluation (default: 8)")
-    training.add_argument("--checkpoints", type=_positive_int, default=10, help="checkpoints saved (default: 10)")
+    training.add_argument("--checkpoints", type=_positive_int, default=10,
+                          help="checkpoints saved (default: 10)")
     training.add_argument("--init", default=None,
                           help="start from the model of a previous run (its directory), e.g. balance before "
                                "swingup, or to fine-tune with a randomization")

@@ -138,7 +138,8 @@ def test_the_policies_are_shipped_and_listed():
 
 
 @pytest.mark.parametrize(("spec", "task", "least"), [
-    ("ppo:balance", "balance", 2000), ("ppo:dampen", "dampen", 1850), ("ppo:balance_follow", "balance_follow", 1900)])
+    ("ppo:balance", "balance", 2000), ("ppo:dampen", "dampen", 1850),
+    ("ppo:balance_follow", "balance_follow", 1900)])
 def test_shipped_policies_reach_their_targets_on_unseen_seeds(spec, task, least):
     result = evaluate(spec, task=task, episodes=2, seed=1000)
     assert min(result.returns) >= least and result.success_rate == 1.0, result.returns
