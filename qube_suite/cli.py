@@ -129,14 +129,12 @@ def _add_policy_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _make_policy(args: argparse.Namespace, environment: Any) -> tuple[Any, str]:
     """The policy the arguments name, built for `environment`, and its name."""
-    from qube_suite import baselines
+    from qube_suite.evaluation import policy_for
     from qube_suite.policies import load_policy
 
     if args.policy is not None:
         return load_policy(args.policy), args.policy
-    if args.controller not in baselines.CONTROLLERS:
-        return load_policy(args.controller), args.controller
-    controller = baselines.for_environment(args.controller, environment)
+    controller = policy_for(args.controller, environment)
     suited = getattr(controller, "tasks", ())
     if suited and args.task not in suited:
         print(f"qube-suite: note: controller {args.controller!r} is meant for {', '.join(suited)}",

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import pathlib
 import time
 from collections.abc import Callable
 from typing import Any
@@ -24,7 +25,7 @@ import numpy as np
 from tqdm import tqdm
 
 from qube_suite import baselines, suite
-from qube_suite.policies import load_policy
+from qube_suite.policies import load_policy, shipped
 
 SETTLED_TIME = 2.0
 """Success looks at the final 2 s of an episode."""
@@ -86,6 +87,19 @@ def succeeded(task: str, pendulum_errors: np.ndarray, terminated: bool, revoluti
             and bool(np.all(pendulum_errors[-settled:] <= GOAL_TOLERANCE)))
 
 
+def policy_for(spec: str, environment) -> Callable[[Any], float]:
+    """The policy `spec` names, for a suite `environment`: a controller of
+    `baselines.CONTROLLERS` built by `baselines.for_environment`, a shipped learned policy
+    ("ppo:balance") or the path of a policy file (.npz). Raises ValueError naming the valid ones."""
+    if spec in baselines.CONTROLLERS:
+        return baselines.for_environment(spec, environment)
+    if spec in shipped() or spec.endswith(".npz") or pathlib.Path(spec).expanduser().exists():
+        return load_policy(spec)
+    raise ValueError(f"unknown controller or policy {spec!r}: valid controllers are "
+                     f"{', '.join(baselines.CONTROLLERS)}; shipped policies "
+                     f"{', '.join(shipped()) or 'none'}; or give the path of a .npz policy file")
+
+
 def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: str = "swingup",
              episodes: int = 20, seed: int = 0, randomization: Any = None,
              task_kwargs: dict[str, Any] | None = None, environment_kwargs: dict[str, Any] | None = None,
@@ -108,10 +122,8 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
                              environment_kwargs=environment_kwargs, randomization=randomization,
                              domain_kwargs=domain_kwargs)
     name = policy if isinstance(policy, str) else getattr(policy, "name", type(policy).__name__)
-    if isinstance(policy, str) and policy in baselines.CONTROLLERS:
-        policy = baselines.for_environment(policy, environment)
-    elif isinstance(policy, str):
-        policy = load_policy(policy)
+    if isinstance(policy, str):
+        policy = policy_for(policy, environment)
     hanging_goal = task.startswith("dampen")
     returns, successes, step_times, step_cpu_times = [], [], [], []
     bar = tqdm(total=episodes, unit="episode", disable=not progress, desc=f"{name} on {domain}/{task}")
