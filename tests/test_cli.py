@@ -1,16 +1,14 @@
 """The `qube-suite` command line."""
 
-import importlib.machinery
 import subprocess
 import sys
-import types
 
 import imageio.v3 as iio
 import imageio_ffmpeg
 import pytest
 from conftest import requires_offscreen_gl
 
-from qube_suite import baselines, cli, extras, suite
+from qube_suite import baselines, cli, extras, policies, suite
 
 
 def test_list_shows_tasks_ids_presets_controllers_and_policies(capsys):
@@ -18,19 +16,19 @@ def test_list_shows_tasks_ids_presets_controllers_and_policies(capsys):
     out = capsys.readouterr().out
     assert "swingup_follow_sparse" in out and "QubeSuite/Rotor-v0" in out
     assert "QubeSuite/SwingupFollowSparseHardware-v0" in out
-    assert "none, mild, moderate, sim2real" in out and "shipped policies: none" in out
+    assert "none, mild, moderate, sim2real" in out
+    assert ": ppo:balance, ppo:balance_follow, ppo:dampen" in out
     for name, controller in baselines.CONTROLLERS.items():
         assert f"  {name}" in out and ", ".join(controller.tasks) in out
 
 
-def test_list_shows_policies_once_a_policies_module_exists(capsys, monkeypatch):
-    module = types.ModuleType("qube_suite.policies")
-    module.__spec__ = importlib.machinery.ModuleSpec("qube_suite.policies", None)
-    module.POLICIES = {"ppo_swingup": object(), "sac_balance": object()}
-    monkeypatch.setitem(sys.modules, "qube_suite.policies", module)
-    assert cli.shipped_policies() == ["ppo_swingup", "sac_balance"]
-    assert cli.main(["list"]) == 0
-    assert "shipped policies: ppo_swingup, sac_balance" in capsys.readouterr().out
+def test_run_and_eval_take_learned_policies(capsys, tmp_path):
+    assert cli.main(["run", "--task", "balance", "--controller", "ppo:balance"]) == 0
+    assert "episode 1 (seed 0): return 204" in capsys.readouterr().out
+    policy = tmp_path / "balance.npz"
+    policy.write_bytes(policies.shipped()["ppo:balance"].read_bytes())
+    assert cli.main(["run", "--task", "balance", "--policy", str(policy)]) == 0
+    assert "episode 1 (seed 0): return 204" in capsys.readouterr().out
 
 
 def test_demo_swings_up_prints_the_return_and_plots_it(capsys, monkeypatch, tmp_path):
@@ -86,7 +84,8 @@ def test_run_paces_the_simulation_by_the_wall_clock(monkeypatch):
 
 @pytest.mark.parametrize("argv, message", [
     (["--task", "fly", "--controller", "balance"], "unknown task 'fly'"),
-    (["--task", "balance", "--controller", "pid"], "unknown controller 'pid'; valid controllers: balance"),
+    (["--task", "balance", "--controller", "pid"],
+     "unknown controller or policy 'pid': valid controllers are balance"),
     (["--task", "balance", "--controller", "balance", "--randomization", "wild"], "valid presets"),
     (["--task", "balance", "--controller", "balance", "--video", "x.mp4", "--camera", "side"],
      "unknown camera 'side'"),
