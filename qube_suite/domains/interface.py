@@ -82,3 +82,36 @@ class QubePhysics(Protocol):
 
     def close(self) -> None:
         """Release the Qube: on hardware, stop the motor and close the board."""
+
+
+class MeasuredState:
+    """The state accessors of `QubePhysics` for a domain that keeps what it observes in
+    `_measured` = (theta, alpha, dtheta, dalpha) (rad, rad/s, angles wrapped) and the
+    commanded voltage in `_voltage` (V)."""
+
+    _measured: Sequence[float]
+    _voltage: float
+
+    def arm_angle(self) -> float:
+        """Measured arm angle theta (rad) in (-pi, pi], 0 = centred at the front."""
+        return self._measured[0]
+
+    def pendulum_angle(self) -> float:
+        """Measured pendulum angle alpha (rad) in (-pi, pi], 0 = upright."""
+        return self._measured[1]
+
+    def arm_velocity(self) -> float:
+        """Measured d theta / dt (rad/s)."""
+        return self._measured[2]
+
+    def pendulum_velocity(self) -> float:
+        """Measured d alpha / dt (rad/s)."""
+        return self._measured[3]
+
+    def qube_state(self) -> np.ndarray:
+        """Measured [theta, alpha, dtheta, dalpha] (rad, rad/s), angles wrapped."""
+        return np.array(self._measured)
+
+    def voltage(self) -> float:
+        """Motor voltage (V) commanded by the last `set_voltage`."""
+        return self._voltage

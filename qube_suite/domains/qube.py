@@ -21,6 +21,7 @@ from dm_control import mujoco as dm_mujoco
 from qube_suite import parameters as params
 from qube_suite.angles import wrap_angle
 from qube_suite.arguments import keywords_of
+from qube_suite.domains.interface import MeasuredState
 
 MODEL_PATH = pathlib.Path(__file__).resolve().parent.parent / "assets" / "qube.xml"
 
@@ -37,7 +38,7 @@ the motor's no-load speed at 10 V (238 rad/s). MuJoCo's automatic reset is off i
 diverged state stays (huge, inf or NaN) and fails this check."""
 
 
-class Physics(dm_mujoco.Physics):
+class Physics(MeasuredState, dm_mujoco.Physics):
     """MuJoCo physics of the Qube with accessors that read like the Qube.
 
     Implements `qube_suite.domains.interface.QubePhysics`. The Qube's state is
@@ -119,33 +120,9 @@ class Physics(dm_mujoco.Physics):
 
     # -- the domain interface -------------------------------------------------------
 
-    def arm_angle(self) -> float:
-        """Measured arm angle theta (rad) in (-pi, pi], 0 = centred at the front."""
-        return self._measured[0]
-
-    def pendulum_angle(self) -> float:
-        """Measured pendulum angle alpha (rad) in (-pi, pi], 0 = upright."""
-        return self._measured[1]
-
-    def arm_velocity(self) -> float:
-        """Measured d theta / dt (rad/s)."""
-        return self._measured[2]
-
-    def pendulum_velocity(self) -> float:
-        """Measured d alpha / dt (rad/s)."""
-        return self._measured[3]
-
-    def qube_state(self) -> np.ndarray:
-        """Measured [theta, alpha, dtheta, dalpha] (rad, rad/s), angles wrapped."""
-        return np.array(self._measured)
-
     def true_state(self) -> np.ndarray:
         """Exact [theta, alpha, dtheta, dalpha] of the simulation, angles wrapped."""
         return np.array(self._exact_state())
-
-    def voltage(self) -> float:
-        """Motor voltage (V) commanded by the last `set_voltage`."""
-        return self._voltage
 
     def applied_voltage(self) -> float:
         """Motor voltage (V) the simulated motor receives: the command after actuator effects."""

@@ -47,6 +47,7 @@ from qube_suite import baselines
 from qube_suite.angles import wrap_angle
 from qube_suite.arguments import keywords_of
 from qube_suite.baselines.model import RigidBodyModel
+from qube_suite.domains.interface import MeasuredState
 from qube_suite.hardware import conventions
 from qube_suite.hardware.errors import EncoderGlitchError, HardwareError
 from qube_suite.hardware.estimation import StateEstimator
@@ -73,7 +74,7 @@ class ResetError(HardwareError):
     """A reset controller did not reach the episode's start in time."""
 
 
-class Physics(control.Physics):
+class Physics(MeasuredState, control.Physics):
     """A Qube on a Quanser board, through the domain interface (`domains.interface.QubePhysics`).
 
     Args:
@@ -127,30 +128,6 @@ class Physics(control.Physics):
         self.others = np.zeros(1)
 
     # -- the domain interface ---------------------------------------------------------------
-
-    def arm_angle(self) -> float:
-        """Encoder arm angle theta (rad) in (-pi, pi]."""
-        return self._measured[0]
-
-    def pendulum_angle(self) -> float:
-        """Encoder pendulum angle alpha (rad) in (-pi, pi], 0 = upright."""
-        return self._measured[1]
-
-    def arm_velocity(self) -> float:
-        """Filtered d theta / dt (rad/s)."""
-        return self._measured[2]
-
-    def pendulum_velocity(self) -> float:
-        """Filtered d alpha / dt (rad/s)."""
-        return self._measured[3]
-
-    def qube_state(self) -> np.ndarray:
-        """Measured [theta, alpha, dtheta, dalpha] (rad, rad/s)."""
-        return np.array(self._measured)
-
-    def voltage(self) -> float:
-        """Motor voltage (V) commanded by the last `set_voltage`."""
-        return self._voltage
 
     @property
     def max_voltage(self) -> float:
