@@ -297,6 +297,15 @@ def test_dampen_from_upright_and_from_a_revolving_pendulum(start):
     assert_at_rest_hanging(discount, states)
 
 
+@pytest.mark.parametrize("start", [[0.0, 0.0, 0.0, 0.0], [0.3, 1e-3, 0.0, 0.0], [-0.2, -1e-3, 0.0, 0.0]])
+def test_dampen_tips_a_pendulum_that_friction_holds_upright(start):
+    # Coulomb friction of 5e-5 N m holds the pendulum within about 3e-3 rad of upright at rest
+    # (m g l sin(alpha) below it): with no speed the energy law alone would leave it there.
+    _, discount, states, _ = trajectory(starting_from(Dampen, start), baselines.make("dampen"),
+                                        {"pendulum_friction": 5e-5})
+    assert_at_rest_hanging(discount, states)
+
+
 @pytest.mark.parametrize("physics_parameters", ROBUSTNESS)
 def test_dampen_works_on_plants_it_was_not_designed_for(physics_parameters):
     _, discount, states, _ = trajectory(SUITE["dampen"](random=1), baselines.make("dampen"),

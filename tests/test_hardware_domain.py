@@ -8,7 +8,7 @@ import pytest
 from hil_helpers import fake_quanser_sdk
 
 import qube_suite  # noqa: F401  (registers the Gymnasium ids)
-from qube_suite import suite
+from qube_suite import baselines, suite
 from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.domains.qube_hardware import RESET_LED, ResetError
 from qube_suite.hardware import conventions
@@ -173,3 +173,18 @@ def test_randomization_effects_apply_on_hardware():
 def test_randomizing_the_plant_on_hardware_is_a_clear_error(config, message):
     with pytest.raises(ValueError, match=message):
         load("balance", randomization=config)
+
+
+def test_a_pendulum_left_at_rest_upright_is_brought_down_for_a_hanging_start():
+    # Coulomb friction in the plant's pendulum bearing holds it exactly upright: the reset must tip it.
+    with load("swingup", environment_kwargs={"time_limit": 4.0}) as env:
+        controller = baselines.for_environment("swingup", env)
+        timestep = env.reset()
+        while not timestep.last():
+            timestep = env.step(controller(timestep.observation))
+        board = env.physics.qube.board
+        assert abs(board.true_state()[1]) < math.radians(10)         # ended balanced ...
+        board.set_true_state([0.0, 0.0, 0.0, 0.0])   # ... and now at rest upright, arm centred
+        env.reset()
+        theta, alpha, dtheta, dalpha = env.physics.qube.board.true_state()
+        assert math.pi - abs(alpha) < math.radians(4) and abs(dalpha) < 0.5

@@ -7,6 +7,11 @@ hanging (`lqr_design(pendulum_angle=pi)`) damps the last small swing, which the
 energy law, whose error vanishes quadratically there, would leave to the
 pendulum's own friction, and centres the arm. It acts inside the ellipsoid of
 its cost-to-go on which it would ask for at most `HANG_VOLTAGE`.
+
+A pendulum at rest upright gives the energy law nothing to act on (its torque
+follows the pendulum's speed), and Coulomb friction in the pendulum's bearing can
+hold it there: a Qube left balanced at the end of an episode would stay up. Then
+the arm is kicked with `KICK_VOLTAGE` towards its centre until the pendulum moves.
 """
 
 from __future__ import annotations
@@ -26,6 +31,10 @@ STATE_WEIGHTS = (2.0, 5.0, 0.05, 0.5)
 """LQR weights on [theta, alpha - pi, dtheta, dalpha] (rad, rad/s) about hanging."""
 HANG_VOLTAGE = 6.0
 """The hanging LQR acts inside its cost-to-go ellipsoid where it would ask for at most this (V)."""
+KICK_VOLTAGE = 1.0
+"""Voltage (V) that tips a pendulum resting upright ..."""
+RESTING_UPRIGHT = (0.1, 0.2)
+"""... found within this angle of upright (rad) and below this speed (rad/s)."""
 
 
 class Dampen(Controller):
@@ -53,4 +62,6 @@ class Dampen(Controller):
         if error @ self.cost_matrix @ error < self.hang_level:
             volts = -float(self.gain @ error)
             return min(max(volts, -self.voltage_limit), self.voltage_limit)
+        if abs(wrap_angle(state[1])) < RESTING_UPRIGHT[0] and abs(state[3]) < RESTING_UPRIGHT[1]:
+            return -math.copysign(min(KICK_VOLTAGE, self.voltage_limit), state[0])
         return self.shaping.voltage(state, self.energy_set)
