@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import pathlib
 import time
 from collections.abc import Callable
 from typing import Any
@@ -25,7 +24,7 @@ import numpy as np
 from tqdm import tqdm
 
 from qube_suite import baselines, suite
-from qube_suite.policies import load_policy, shipped
+from qube_suite.policies import load_policy, names_a_policy, shipped
 
 SETTLED_TIME = 2.0
 """Success looks at the final 2 s of an episode."""
@@ -93,7 +92,7 @@ def policy_for(spec: str, environment) -> Callable[[Any], float]:
     ("ppo:balance") or the path of a policy file (.npz). Raises ValueError naming the valid ones."""
     if spec in baselines.CONTROLLERS:
         return baselines.for_environment(spec, environment)
-    if spec in shipped() or spec.endswith(".npz") or pathlib.Path(spec).expanduser().exists():
+    if names_a_policy(spec):
         return load_policy(spec)
     raise ValueError(f"unknown controller or policy {spec!r}: valid controllers are "
                      f"{', '.join(baselines.CONTROLLERS)}; shipped policies "

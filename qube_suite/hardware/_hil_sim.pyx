@@ -491,44 +491,28 @@ cdef class HIL:
     def read_encoder(self, channels, num_channels, int[::1] buffer):
         """Read encoder counts now into `buffer`."""
         cdef list chans = _channels(channels, num_channels, _length_i(buffer), "encoder", (0, 1))
-        cdef Sample sample
-        with self.lock:
-            self._require_open()
-            self._sync()
-            self._sample(&sample)
+        cdef Sample sample = self._read_now()
         for j, c in enumerate(chans):
             buffer[j] = sample.encoder[c]
 
     def read_analog(self, channels, num_channels, double[::1] buffer):
         """Read the motor current (A) now into `buffer`."""
         cdef list chans = _channels(channels, num_channels, _length_d(buffer), "analog input", (ANALOG_CURRENT,))
-        cdef Sample sample
-        with self.lock:
-            self._require_open()
-            self._sync()
-            self._sample(&sample)
+        cdef Sample sample = self._read_now()
         for j in range(len(chans)):
             buffer[j] = sample.current
 
     def read_digital(self, channels, num_channels, signed char[::1] buffer):
         """Read the fault and stall flags now into `buffer` (1 = asserted)."""
         cdef list chans = _channels(channels, num_channels, _length_b(buffer), "digital input", (0, 1, 2))
-        cdef Sample sample
-        with self.lock:
-            self._require_open()
-            self._sync()
-            self._sample(&sample)
+        cdef Sample sample = self._read_now()
         for j, c in enumerate(chans):
             buffer[j] = sample.digital[c]
 
     def read_other(self, channels, num_channels, double[::1] buffer):
         """Read the tachometer (counts/s) now into `buffer`."""
         cdef list chans = _channels(channels, num_channels, _length_d(buffer), "other input", (OTHER_TACHOMETER,))
-        cdef Sample sample
-        with self.lock:
-            self._require_open()
-            self._sync()
-            self._sample(&sample)
+        cdef Sample sample = self._read_now()
         for j in range(len(chans)):
             buffer[j] = sample.tachometer
 
@@ -934,6 +918,15 @@ cdef class HIL:
         sample.digital[_STALL_DETECTED] = self.s.stall_detected
         sample.digital[_STALL_ERROR] = self.s.stall_error
         sample.tachometer = ARM_SIGN * self.s.x[2] * COUNTS_PER_RADIAN
+
+    cdef Sample _read_now(self) except *:
+        """The present sample of an open board (the immediate reads)."""
+        cdef Sample sample
+        with self.lock:
+            self._require_open()
+            self._sync()
+            self._sample(&sample)
+        return sample
 
     cdef void _take_sample(self) noexcept nogil:
         """Put the present sample into the task buffer, by the overflow mode if it is full."""

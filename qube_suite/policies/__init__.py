@@ -25,6 +25,13 @@ def shipped() -> dict[str, pathlib.Path]:
     return {path.stem.replace("_", ":", 1): path for path in sorted(DIRECTORY.glob("*.npz"))}
 
 
+def names_a_policy(spec: str | pathlib.Path) -> bool:
+    """Whether `spec` names a policy `load_policy` would try: a shipped one, or a file (an existing
+    path, or one ending in .npz, so that a missing policy file is reported as missing)."""
+    path = pathlib.Path(str(spec)).expanduser()
+    return str(spec) in shipped() or path.suffix == ".npz" or path.exists()
+
+
 def load_policy(spec: str | pathlib.Path) -> MLPPolicy:
     """The policy `spec` names: a shipped policy ("ppo:swingup") or the path of a policy file.
 
@@ -34,11 +41,10 @@ def load_policy(spec: str | pathlib.Path) -> MLPPolicy:
     available = shipped()
     if text in available:
         return load(available[text], name=text)
-    path = pathlib.Path(text).expanduser()
-    if path.suffix == ".npz" or path.exists():
-        return load(path)
+    if names_a_policy(text):
+        return load(pathlib.Path(text).expanduser())
     raise ValueError(f"unknown policy {text!r}: shipped policies are {', '.join(available) or 'none'}, "
                      "or give the path of a .npz policy file")
 
 
-__all__ = ["DIRECTORY", "MLPPolicy", "load", "load_policy", "save", "shipped"]
+__all__ = ["DIRECTORY", "MLPPolicy", "load", "load_policy", "names_a_policy", "save", "shipped"]

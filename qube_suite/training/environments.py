@@ -1,10 +1,11 @@
 """Vectorised environments for training and evaluation with stable-baselines3 (imports it).
 
-The simulated domain without randomization runs as the native vector environment
-(all worlds in one MuJoCo rollout call) through `qube_suite.wrappers.sb3`; with a
-randomization, each world is a single environment in SB3's `DummyVecEnv` (the
-native vector env does not randomize yet); the hardware domain is one substitute
-board per process (`SubprocVecEnv`), as real boards are separate machines.
+The simulated domain runs as the native vector environment (all worlds in one
+MuJoCo rollout call, each with its own randomization draws) through
+`qube_suite.wrappers.sb3`; with changed physical parameters (`domain_kwargs`), which
+it does not take, each world is a single environment in SB3's `DummyVecEnv`; the
+hardware domain is one substitute board per process (`SubprocVecEnv`), as real
+boards are separate machines.
 Observations leave through the policy's feature map (`VecFeatures`) and episode
 returns are recorded by `VecMonitor`. Training environments of swing-up tasks in
 simulation may start some episodes anywhere (`ExploringStarts`); evaluation
@@ -67,8 +68,8 @@ def raw_vec_env(task: str, num_envs: int, seed: int, domain: str = "qube", rando
     """`num_envs` environments of `task` on `domain` with the standard observation, seeded
     `seed`, `seed + 1`, ... at their first reset."""
     env_id = gymnasium_id(task, domain)
-    if domain == "qube" and randomization is None and not domain_kwargs:
-        venv = make_sb3_vec_env(env_id, num_envs=num_envs, threads=1)
+    if domain == "qube" and not domain_kwargs:
+        venv = make_sb3_vec_env(env_id, num_envs=num_envs, threads=1, randomization=randomization)
     elif domain == "qube":
         venv = DummyVecEnv([_single(env_id, randomization=randomization, domain_kwargs=domain_kwargs)
                             for _ in range(num_envs)])
