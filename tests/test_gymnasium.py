@@ -89,3 +89,15 @@ def test_human_rendering_without_a_display_is_a_clear_error(monkeypatch):
         gymnasium.make("QubeSuite/Swingup-v0", render_mode="human")
     env = gymnasium.make("QubeSuite/Swingup-v0", render_mode="rgb_array")
     assert "human" not in env.metadata["render_modes"]
+
+
+def test_order_enforced_by_the_environment_itself():
+    # gymnasium.make adds no OrderEnforcing/PassiveEnvChecker (CHECKS_BUILT_IN): the env refuses on its own
+    env = gymnasium.make("QubeSuite/Balance-v0")
+    assert type(env).__name__ == "QubeEnv"
+    with pytest.raises(RuntimeError, match="call reset"):
+        env.step(np.zeros(1, np.float32))
+    env.reset(seed=0)
+    env.step(np.zeros(1, np.float32))
+    checked = gymnasium.make("QubeSuite/Balance-v0", disable_env_checker=False)
+    assert type(checked).__name__ == "PassiveEnvChecker"

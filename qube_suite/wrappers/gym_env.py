@@ -93,6 +93,7 @@ class QubeEnv(gymnasium.Env):
             raise ValueError("render_mode='human' needs a display (DISPLAY is not set); "
                              "use render_mode='rgb_array' to get frames offscreen")
         self.environment = environment
+        self._task, self._physics = environment.task, environment.physics  # fixed for its lifetime
         self.render_mode = render_mode
         self._frames = FrameRenderer(camera, int(width), int(height)) if render_mode == "rgb_array" else None
         self._viewer = None
@@ -108,11 +109,11 @@ class QubeEnv(gymnasium.Env):
 
     @property
     def task(self):
-        return self.environment.task
+        return self._task
 
     @property
     def physics(self):
-        return self.environment.physics
+        return self._physics
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Start an episode; `seed` reseeds the task's random state (same seed, same episode)."""
@@ -127,16 +128,18 @@ class QubeEnv(gymnasium.Env):
         return self._observation(), info
 
     def step(self, action):
-        if self.environment.needs_reset:
-            raise RuntimeError("the episode has ended; call reset() before step()")
-        reward, discount = self.environment.advance(action)
+        environment = self.environment
+        if environment.needs_reset:
+            raise RuntimeError("no episode is running (never reset, or the last one ended); "
+                               "call reset() before step()")
+        reward, discount = environment.advance(action)
         terminated = discount == 0.0
         truncated = discount == 1.0
         if self.render_mode == "human":
             self.render()
         info = self._info()
-        if terminated and self.environment.physics_error is not None:
-            info["physics_error"] = self.environment.physics_error
+        if terminated and environment.physics_error is not None:
+            info["physics_error"] = environment.physics_error
         return self._observation(), reward, terminated, truncated, info
 
     def render(self):
@@ -162,13 +165,13 @@ class QubeEnv(gymnasium.Env):
             self.environment.close()
 
     def _observation(self) -> np.ndarray:
-        return np.array(self.environment.task.observation_values(self.environment.physics), dtype=np.float32)
+        return np.array(self._task.observation_values(self._physics), dtype=np.float32)
 
     def _info(self) -> dict[str, Any]:
-        physics = self.environment.physics
+        physics = self._physics
         info = {"time": physics.time(), "voltage": physics.voltage()}
         if self._follows_target:
-            info["target"] = self.environment.task.target
+            info["target"] = self._task.target
         return info
 
 
