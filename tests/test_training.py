@@ -109,6 +109,7 @@ def test_init_continues_from_a_previous_run(tmp_path):
 
 @needs_rl
 def test_exploring_starts_start_some_episodes_anywhere():
+    from qube_suite.baselines.model import RigidBodyModel
     from qube_suite.training.environments import ExploringStarts
 
     def hanging(random):
@@ -119,4 +120,11 @@ def test_exploring_starts_start_some_episodes_anywhere():
     anywhere = starts[:, 1] != np.pi
     assert 0.45 < anywhere.mean() < 0.55
     assert np.abs(starts[anywhere, 1]).min() < 0.1 and np.abs(starts[anywhere, 0]).max() <= 0.5
+    swinging = anywhere & (starts[:, 2] == 0.0)  # the arm at rest: on a swing near upright energy
+    assert 0.4 < swinging.sum() / anywhere.sum() < 0.6
+    model = RigidBodyModel.from_parameters()
+    energies = np.array([model.energy(alpha, 0.0, dalpha) for _, alpha, _, dalpha in starts[swinging]])
+    low, high = (bound * model.swing_up_energy for bound in ExploringStarts.APPROACH_ENERGY)
+    assert (energies >= low - 1e-12).all() and (energies <= high + 1e-12).all()
+    assert np.abs(starts[swinging, 3]).max() > 15.0  # fast through hanging, slow near upright
     assert (np.array([ExploringStarts(hanging, 0.0)(random) for _ in range(20)])[:, 1] == np.pi).all()

@@ -30,21 +30,37 @@ from qube_suite.wrappers.sb3 import VecFeatures, make_sb3_vec_env
 class ExploringStarts:
     """A task's start distribution that, in a `fraction` of episodes, starts anywhere instead.
 
-    "Anywhere": alpha uniform on the circle, theta uniform in +-0.5 rad, both
-    velocities uniform in +-1 rad/s. Swing-up policies then meet the upright
-    region, where balancing is learnt, from the first episodes on, instead of only
-    after they have learnt to swing up. Drawn from the task's random state.
+    "Anywhere": theta uniform in +-0.5 rad, alpha uniform on the circle, and, in
+    equal shares, either both velocities uniform in +-1 rad/s, or the arm at rest
+    and the pendulum swinging with about the energy of rest upright (between
+    `APPROACH_ENERGY` times the swing-up energy 2 mp g l, rigid-body model of
+    `qube_suite.baselines.model`). Swing-up policies then meet the upright region
+    from the first episodes on, both slowly (where balancing is learnt) and at the
+    end of a swing (where catching is learnt), instead of only after they have
+    learnt to swing up; without the swinging starts PPO settled on spinning the
+    pendulum round (about 0.6 per step). Drawn from the task's random state.
     """
 
+    APPROACH_ENERGY = (-0.15, 0.05)
+
     def __init__(self, task_start: Callable[[np.random.RandomState], np.ndarray], fraction: float):
+        from qube_suite.baselines.model import RigidBodyModel
+
         self._task_start = task_start
         self._fraction = fraction
+        self._model = RigidBodyModel.from_parameters()
 
     def __call__(self, random: np.random.RandomState) -> np.ndarray:
         if random.random_sample() >= self._fraction:
             return self._task_start(random)
-        return np.array([random.uniform(-0.5, 0.5), random.uniform(-math.pi, math.pi),
-                         random.uniform(-1.0, 1.0), random.uniform(-1.0, 1.0)])
+        theta, alpha = random.uniform(-0.5, 0.5), random.uniform(-math.pi, math.pi)
+        if random.random_sample() < 0.5:
+            return np.array([theta, alpha, random.uniform(-1.0, 1.0), random.uniform(-1.0, 1.0)])
+        model = self._model
+        energy = random.uniform(*self.APPROACH_ENERGY) * model.swing_up_energy
+        kinetic = energy - model.gravity_torque * (math.cos(alpha) - 1.0)  # J, arm at rest
+        speed = math.sqrt(2.0 * max(kinetic, 0.0) / model.pendulum_inertia)
+        return np.array([theta, alpha, 0.0, speed if random.random_sample() < 0.5 else -speed])
 
 
 def explore_starts(venv: VecEnv, fraction: float) -> None:
