@@ -128,3 +128,21 @@ def test_exploring_starts_start_some_episodes_anywhere():
     assert (energies >= low - 1e-12).all() and (energies <= high + 1e-12).all()
     assert np.abs(starts[swinging, 3]).max() > 15.0  # fast through hanging, slow near upright
     assert (np.array([ExploringStarts(hanging, 0.0)(random) for _ in range(20)])[:, 1] == np.pi).all()
+
+
+@needs_rl
+def test_a_follow_task_starts_from_its_plain_task_with_the_target_weighted_zero(tmp_path):
+    plain = training.train("swingup", steps=256, num_envs=1, evaluations=1, eval_episodes=1, checkpoints=1,
+                           progress=False, hyperparameters={"n_steps": 256}, out=tmp_path / "plain")
+    follow = training.train("swingup_follow", steps=256, num_envs=1, evaluations=1, eval_episodes=1,
+                            checkpoints=1, progress=False, out=tmp_path / "follow", init=plain.directory,
+                            hyperparameters={"n_steps": 256, "learning_rate": 0.0})
+    before, after = load_policy(plain.final_policy), load_policy(follow.final_policy)
+    assert after.tasks == ("swingup_follow",) and after.weights[0].shape == (64, 8)
+    np.testing.assert_array_equal(after.weights[0][:, :6], before.weights[0])
+    assert not after.weights[0][:, 6:].any()  # the target's features start with zero weights
+    for old, new in zip(before.weights[1:], after.weights[1:], strict=True):
+        np.testing.assert_array_equal(old, new)
+    with pytest.raises(ValueError, match="more than this task's"):
+        training.train("swingup", steps=256, num_envs=1, progress=False, out=tmp_path / "narrower",
+                       init=follow.directory, hyperparameters={"n_steps": 256})

@@ -12,7 +12,8 @@ TensorBoard event files (`tensorboard --logdir DIR`), `evaluations.npz`,
 `best_policy.npz` (the policy at its best periodic evaluation) and
 `training.json` (settings, steps and wall time). `init=DIR` continues from the
 model and normalisation statistics a previous run left in DIR, for a curriculum
-(balance, then swing-up) or to fine-tune with a randomization.
+(balance, then swing-up; swing-up, then swing-up with a moving target: see
+`warm_start`) or to fine-tune with a randomization.
 """
 
 from __future__ import annotations
@@ -78,9 +79,9 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         progress: show a progress bar (tqdm).
         hyperparameters: overrides of `HYPERPARAMETERS[algo]`.
         init: directory of a previous run of `algo` on a task with the same
-            observation layout; training starts from its `model.zip` and
-            `vecnormalize.pkl` (the network's shape is that run's; every other
-            hyperparameter is this run's).
+            observation layout, or the same without the follow target; training
+            starts from its `model.zip` and `vecnormalize.pkl` (the network's shape
+            is that run's; every other hyperparameter is this run's).
     """
     if algo not in HYPERPARAMETERS:
         raise ValueError(f"unknown algorithm {algo!r}; valid: {', '.join(HYPERPARAMETERS)}")
@@ -110,6 +111,7 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     from stable_baselines3.common.vec_env import VecNormalize
 
     from qube_suite.policies import export, save
+    from qube_suite.training import warm_start
     from qube_suite.training.callbacks import OnNewBest, ProgressBar
     from qube_suite.training.environments import make_vec_env
 
@@ -127,8 +129,7 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     if init is None:
         venv = VecNormalize(venv, gamma=settings["gamma"], norm_reward=algo == "ppo")
     else:
-        venv = VecNormalize.load(str(init / "vecnormalize.pkl"), venv)
-        venv.training, venv.gamma = True, settings["gamma"]
+        venv = warm_start.load_normalization(init, venv, settings["gamma"])
     eval_worlds = 1 if domain != "qube" else min(eval_episodes, 8)
     eval_venv = VecNormalize(make_vec_env(task, eval_worlds, seed + 100_000, **env_kwargs), training=False,
                              norm_reward=False)
@@ -140,8 +141,7 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     if init is None:
         model = algorithm("MlpPolicy", venv, seed=seed, device="cpu", policy_kwargs=policy_kwargs, **settings)
     else:
-        model = algorithm.load(init / "model.zip", env=venv, device="cpu", custom_objects=settings)
-        model.set_random_seed(seed)
+        model = warm_start.load_model(algorithm, init, venv, seed, settings)
     model.set_logger(configure(str(out), ["csv", "tensorboard"]))
     record = {"algo": algo, "task": task, "domain": domain, "randomization": _describe(randomization),
               "domain_kwargs": domain_kwargs, "seed": seed, "num_envs": num_envs,

@@ -1,0 +1,250 @@
+"""Sim-to-hardware study of learned swing-up: which training randomization transfers, and which
+simulator detail matters.
+
+Starts from one PPO swing-up run on the nominal simulation (`base`: `--base DIR`,
+or trained here as the shipped policy is, balance then swing-up from it), then
+continues it for `--steps` more on the nominal simulation and, from the same
+start, under each randomization preset (mild, moderate, sim2real) and under one
+accuracy option or effect at a time (ablations: Coulomb friction on both joints
+and the cable's spring, both at the sim2real preset's ranges; one control step of
+action delay; Quanser's 50 rad/s velocity filter; 2048-count encoders). Every run
+has the same budget and the same start. Runs already in `--runs` are reused.
+Then scores each policy over seeded episodes on the hardware substitute
+(`qube_hardware`, whose plant the policies never saw) and on held-out variations
+of that plant (`domain_kwargs={"plant": ...}`; in every hardware episode the
+plant's friction and cable spring are drawn within +-50 % of the condition's),
+and the four main runs on the nominal simulation too. Reports mean return with a 95 % bootstrap interval,
+success (no termination, the pendulum within 10 degrees of upright for the final
+2 s) with a 95 % Wilson interval, and each run's training steps and wall time;
+writes the table as JSON beside the runs and the plot to docs/sim2real.png.
+
+    python benchmarks/sim2real.py [--base DIR] [--steps 2000000] [--episodes 20]
+                                  [--runs runs/sim2real] [--jobs 2] [--main-only]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import multiprocessing
+import pathlib
+import shutil
+
+import numpy as np
+from policies import evaluate_on_fresh_qubes  # benchmarks/policies.py
+
+from qube_suite.hardware.plant import plant_parameters
+from qube_suite.policies import load_policy
+from qube_suite.randomization.presets import PRESETS
+
+DOCS = pathlib.Path(__file__).resolve().parent.parent / "docs"
+_SIM2REAL = PRESETS["sim2real"]["parameters"]
+_FRICTION = {name: _SIM2REAL[name] for name in ("arm_friction", "pendulum_friction")}
+
+TRAINING: dict[str, object] = {
+    "nominal": None, "mild": "mild", "moderate": "moderate", "sim2real": "sim2real",
+    "action delay only": {"effects": {"action_delay": {"steps": 1}}},
+    "velocity filter only": {"effects": {"velocity_filter": {"cutoff": 50.0}}},
+    "quantization only": {"effects": {"quantization": {"counts_per_revolution": 2048}}},
+    "friction only": {"parameters": _FRICTION},
+    "cable spring only": {"parameters": {"cable_stiffness": _SIM2REAL["cable_stiffness"]}},
+}
+"""Training run name -> randomization."""
+MAIN = ("nominal", "mild", "moderate", "sim2real")
+"""Runs scored on every condition; the others (ablations) on the hardware substitute only."""
+
+_PLANT = plant_parameters()
+CONDITIONS: dict[str, tuple[str, dict | None]] = {
+    "sim (nominal)": ("qube", None),
+    "hardware": ("qube_hardware", None),
+    "pendulum +30 % mass": ("qube_hardware", {"pendulum_mass": 1.3 * _PLANT["pendulum_mass"]}),
+    "pendulum -30 % mass": ("qube_hardware", {"pendulum_mass": 0.7 * _PLANT["pendulum_mass"]}),
+    "3x friction": ("qube_hardware", {"arm_friction": 3 * _PLANT["arm_friction"],
+                                      "pendulum_friction": 3 * _PLANT["pendulum_friction"]}),
+    "4x cable stiffness": ("qube_hardware", {"cable_stiffness": 4 * _PLANT["cable_stiffness"]}),
+    "motor resistance +25 %": ("qube_hardware", {"motor_resistance": 1.25 * _PLANT["motor_resistance"]}),
+}
+"""Evaluation condition -> (domain, plant overrides of the hardware substitute)."""
+
+UNMODELLED = ("arm_friction", "pendulum_friction", "cable_stiffness")
+PLANT_SPREAD = 0.5
+"""Every hardware episode's plant draws the `UNMODELLED` terms within +-50 % of the condition's
+values (`episode_plant`): started hanging at rest, the substitute is otherwise deterministic, and
+all episodes of a condition would be the same one."""
+
+
+def bootstrap_interval(values: list[float], level: float = 0.95,
+                       resamples: int = 10_000) -> tuple[float, float]:
+    """Percentile bootstrap interval of the mean (seeded, so the table is reproducible)."""
+    rng = np.random.default_rng(0)
+    means = rng.choice(np.asarray(values), size=(resamples, len(values))).mean(axis=1)
+    return tuple(float(q) for q in np.quantile(means, [(1 - level) / 2, (1 + level) / 2]))
+
+
+def wilson_interval(successes: int, trials: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson score interval of a success rate."""
+    p = successes / trials
+    centre = (p + z * z / (2 * trials)) / (1 + z * z / trials)
+    half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / (1 + z * z / trials)
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+BASE_RECIPE = (("balance", 500_000), ("swingup", 5_000_000))
+"""How the base is trained when no `--base` is given: the shipped swing-up's recipe (task, steps),
+each stage starting from the previous one."""
+
+
+def train_base(runs: pathlib.Path, seed: int) -> pathlib.Path:
+    """The base swing-up run in `runs/base`, trained by `BASE_RECIPE` unless already there."""
+    from qube_suite.training import train
+
+    previous = None
+    for task, steps in BASE_RECIPE:
+        directory = runs / ("base" if task == "swingup" else f"base_{task}")
+        if not (directory / "model.zip").exists():
+            print(f"training the base: {task}, {steps} steps")
+            train(task, steps=steps, seed=seed, out=directory, init=previous, progress=False)
+        previous = directory
+    return previous
+
+
+def train_one(job: tuple[str, str, int, int]) -> None:
+    """Continue the base run `job[1]` under `TRAINING[job[0]]` for `job[2]` steps (seed `job[3]`)."""
+    from qube_suite.training import train
+
+    name, base, steps, seed = job
+    print(f"training {name} ({steps} steps from the base)", flush=True)
+    train("swingup", steps=steps, seed=seed, randomization=TRAINING[name], init=base, progress=False,
+          out=pathlib.Path(base).parent / name.replace(" ", "_"))
+
+
+def train_missing(runs: pathlib.Path, base: pathlib.Path | None, steps: int, seed: int, jobs: int,
+                  names: tuple[str, ...]) -> None:
+    """Every run of `names` (keys of `TRAINING`) that has no policy in `runs` yet, `jobs` at a time,
+    from `base` (copied into `runs/base`) or from a base trained here."""
+    if base is None:
+        base = train_base(runs, seed)
+    elif not (runs / "base" / "model.zip").exists():
+        shutil.copytree(base, runs / "base", dirs_exist_ok=True)
+    base = runs / "base"
+    todo = [(name, str(base), steps, seed) for name in names
+            if not (runs / name.replace(" ", "_") / "best_policy.npz").exists()]
+    with multiprocessing.get_context("spawn").Pool(jobs) as pool:
+        pool.map(train_one, todo, chunksize=1)
+
+
+def episode_plant(condition: str, seed: int) -> dict[str, float]:
+    """The substitute's plant for one episode of a hardware `condition`: the condition's overrides,
+    with the unmodelled terms (`UNMODELLED`) drawn within +-`PLANT_SPREAD` of their values, seeded
+    by the episode's `seed`."""
+    plant = dict(CONDITIONS[condition][1] or {})
+    random = np.random.default_rng(seed)
+    for name in UNMODELLED:
+        plant[name] = plant.get(name, _PLANT[name]) * random.uniform(1.0 - PLANT_SPREAD, 1.0 + PLANT_SPREAD)
+    return plant
+
+
+def score(job: tuple[str, str, str, int, int]) -> dict:
+    """Evaluate one (run, policy file, condition) over `episodes` episodes from `seed`, each on a
+    fresh Qube (`evaluate_on_fresh_qubes`), each hardware episode on its own `episode_plant`."""
+    run, path, condition, episodes, seed = job
+    domain = CONDITIONS[condition][0]
+    policy = load_policy(path)
+    results = [evaluate_on_fresh_qubes(policy, domain, "swingup", 1, seed + episode,
+                                       None if domain == "qube" else
+                                       {"plant": episode_plant(condition, seed + episode)})
+               for episode in range(episodes)]
+    returns = [r for result in results for r in result["returns"]]
+    successes = round(sum(result["success_rate"] for result in results))
+    low, high = bootstrap_interval(returns)
+    success_low, success_high = wilson_interval(successes, episodes)
+    return {"run": run, "condition": condition, "mean_return": float(np.mean(returns)),
+            "return_ci": [low, high], "success_rate": successes / episodes,
+            "success_ci": [success_low, success_high], "returns": returns}
+
+
+def plot(rows: list[dict], path: pathlib.Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib import pyplot
+
+    figure, (left, right) = pyplot.subplots(1, 2, figsize=(14, 4.8), gridspec_kw={"width_ratios": [3, 1.4]})
+    conditions = list(CONDITIONS)
+    width = 0.8 / len(MAIN)
+    for i, run in enumerate(MAIN):
+        found = {r["condition"]: r for r in rows if r["run"] == run}
+        x = np.arange(len(conditions)) + (i - (len(MAIN) - 1) / 2) * width
+        means = [found[c]["mean_return"] if c in found else np.nan for c in conditions]
+        errors = np.array([[found[c]["mean_return"] - found[c]["return_ci"][0],
+                            found[c]["return_ci"][1] - found[c]["mean_return"]] if c in found else [0, 0]
+                           for c in conditions]).T
+        left.bar(x, means, width, yerr=errors, capsize=2, label=f"trained: {run}")
+    left.set_xticks(np.arange(len(conditions)), conditions, rotation=20, ha="right")
+    left.set_ylabel("swing-up return (max 2048)")
+    left.set_title("Trained on the simulation with a randomization, scored on the hardware substitute")
+    left.legend(fontsize=8)
+    hardware = {r["run"]: r for r in rows if r["condition"] == "hardware"}
+    names = [name for name in TRAINING if name in hardware]
+    means = [hardware[n]["mean_return"] for n in names]
+    errors = np.array([[hardware[n]["mean_return"] - hardware[n]["return_ci"][0],
+                        hardware[n]["return_ci"][1] - hardware[n]["mean_return"]] for n in names]).T
+    right.barh(np.arange(len(names)), means, yerr=errors, capsize=2,
+               color=["tab:gray" if n in MAIN else "tab:purple" for n in names])
+    right.set_yticks(np.arange(len(names)), names)
+    right.invert_yaxis()
+    right.set_xlabel("return on the hardware substitute")
+    right.set_title("Which simulator detail matters")
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--base", type=pathlib.Path, help="a finished swing-up training run to start from "
+                        "(default: train one as the shipped policy is)")
+    parser.add_argument("--steps", type=int, default=2_000_000, help="training steps of each run")
+    parser.add_argument("--episodes", type=int, default=20)
+    parser.add_argument("--seed", type=int, default=0, help="training seed and first evaluation seed")
+    parser.add_argument("--runs", default="runs/sim2real", help="directory of the training runs")
+    parser.add_argument("--jobs", type=int, default=2, help="trainings and evaluations run in parallel")
+    parser.add_argument("--no-train", action="store_true", help="only score the runs already present")
+    parser.add_argument("--plot", type=pathlib.Path, default=DOCS / "sim2real.png", help="plot file")
+    parser.add_argument("--main-only", action="store_true",
+                        help="only the nominal run and the presets, without the ablations")
+    args = parser.parse_args()
+    runs = pathlib.Path(args.runs)
+    names = MAIN if args.main_only else tuple(TRAINING)
+    if not args.no_train:
+        train_missing(runs, args.base, args.steps, args.seed, args.jobs, names)
+    jobs = []
+    for name in names:
+        path = runs / name.replace(" ", "_") / "best_policy.npz"
+        if path.exists():
+            for condition in CONDITIONS if name in MAIN else ("hardware",):
+                jobs.append((name, str(path), condition, args.episodes, args.seed))
+    with multiprocessing.Pool(args.jobs) as pool:
+        rows = pool.map(score, jobs)
+    costs = {}
+    for name in ("base", *TRAINING):
+        record = runs / name.replace(" ", "_") / "training.json"
+        if record.exists():
+            data = json.loads(record.read_text())
+            costs[name] = {"steps": data["steps"], "wall_time_s": data["wall_time_s"]}
+    print("| trained with | evaluated on | return (95 % CI) | success (95 % CI) |")
+    print("|---|---|---|---|")
+    for row in rows:
+        low, high = row["return_ci"]
+        success_low, success_high = row["success_ci"]
+        print(f"| {row['run']} | {row['condition']} | {row['mean_return']:.0f} ({low:.0f}–{high:.0f}) | "
+              f"{100 * row['success_rate']:.0f} % ({100 * success_low:.0f}–{100 * success_high:.0f} %) |")
+    print("\n| run | training steps | wall time |\n|---|---|---|")
+    for name, cost in costs.items():
+        print(f"| {name} | {cost['steps'] / 1e6:.2f} M | {cost['wall_time_s'] / 60:.0f} min |")
+    (runs / "sim2real.json").write_text(json.dumps({"rows": rows, "training": costs}, indent=2))
+    plot(rows, args.plot)
+
+
+if __name__ == "__main__":
+    main()
