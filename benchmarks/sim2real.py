@@ -95,8 +95,8 @@ BASE_RECIPE = (("balance", 500_000), ("swingup", 5_000_000))
 each stage starting from the previous one."""
 
 
-def train_base(runs: pathlib.Path, seed: int) -> pathlib.Path:
-    """The base swing-up run in `runs/base`, trained by `BASE_RECIPE` unless already there."""
+def train_base(runs: pathlib.Path, seed: int) -> None:
+    """Train the base swing-up run into `runs/base` by `BASE_RECIPE` (stages already there are kept)."""
     from qube_suite.training import train
 
     previous = None
@@ -106,7 +106,6 @@ def train_base(runs: pathlib.Path, seed: int) -> pathlib.Path:
             print(f"training the base: {task}, {steps} steps")
             train(task, steps=steps, seed=seed, out=directory, init=previous, progress=False)
         previous = directory
-    return previous
 
 
 def train_one(job: tuple[str, str, int, int]) -> None:
@@ -123,10 +122,11 @@ def train_missing(runs: pathlib.Path, base: pathlib.Path | None, steps: int, see
                   names: tuple[str, ...]) -> None:
     """Every run of `names` (keys of `TRAINING`) that has no policy in `runs` yet, `jobs` at a time,
     from `base` (copied into `runs/base`) or from a base trained here."""
-    if base is None:
-        base = train_base(runs, seed)
-    elif not (runs / "base" / "model.zip").exists():
-        shutil.copytree(base, runs / "base", dirs_exist_ok=True)
+    if not (runs / "base" / "model.zip").exists():
+        if base is None:
+            train_base(runs, seed)
+        else:
+            shutil.copytree(base, runs / "base", dirs_exist_ok=True)
     base = runs / "base"
     todo = [(name, str(base), steps, seed) for name in names
             if not (runs / name.replace(" ", "_") / "best_policy.npz").exists()]
