@@ -12,7 +12,8 @@ import pytest
 from qube_suite import cli, evaluate
 from qube_suite.policies import MLPPolicy, features, load, load_policy, save, shipped
 
-SHIPPED = ("ppo:balance", "ppo:balance_follow", "ppo:dampen", "ppo:rotor", "ppo:swingup")
+SHIPPED = ("ppo:balance", "ppo:balance_follow", "ppo:dampen", "ppo:rotor", "ppo:swingup",
+           "ppo:swingup_follow")
 
 
 def hand_made(squash=False, observation_size=4, activation="tanh"):
@@ -140,7 +141,7 @@ def test_the_policies_are_shipped_and_listed():
 @pytest.mark.parametrize(("spec", "task", "least"), [
     ("ppo:balance", "balance", 2000), ("ppo:dampen", "dampen", 1850),
     ("ppo:balance_follow", "balance_follow", 1900), ("ppo:swingup", "swingup", 1500),
-    ("ppo:rotor", "rotor", 40)])
+    ("ppo:rotor", "rotor", 40), ("ppo:swingup_follow", "swingup_follow", 1400)])
 def test_shipped_policies_reach_their_targets_on_unseen_seeds(spec, task, least):
     result = evaluate(spec, task=task, episodes=2, seed=1000)
     assert min(result.returns) >= least and result.success_rate == 1.0, result.returns
