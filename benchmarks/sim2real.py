@@ -183,19 +183,19 @@ def plot(rows: list[dict], path: pathlib.Path) -> None:
         left.bar(x, means, width, yerr=errors, capsize=2, label=f"trained: {run}")
     left.set_xticks(np.arange(len(conditions)), conditions, rotation=20, ha="right")
     left.set_ylabel("swing-up return (max 2048)")
-    left.set_title("Trained on the simulation with a randomization, scored on the hardware substitute")
+    left.set_title("Trained in simulation (by randomization), scored in simulation and on the substitute")
     left.legend(fontsize=8)
     hardware = {r["run"]: r for r in rows if r["condition"] == "hardware"}
     names = [name for name in TRAINING if name in hardware]
     means = [hardware[n]["mean_return"] for n in names]
     errors = np.array([[hardware[n]["mean_return"] - hardware[n]["return_ci"][0],
                         hardware[n]["return_ci"][1] - hardware[n]["mean_return"]] for n in names]).T
-    right.barh(np.arange(len(names)), means, yerr=errors, capsize=2,
+    right.barh(np.arange(len(names)), means, xerr=errors, capsize=2,
                color=["tab:gray" if n in MAIN else "tab:purple" for n in names])
     right.set_yticks(np.arange(len(names)), names)
     right.invert_yaxis()
     right.set_xlabel("return on the hardware substitute")
-    right.set_title("Which simulator detail matters")
+    right.set_title("Every training run, on the substitute")
     figure.tight_layout()
     figure.savefig(path, dpi=110)
 
