@@ -437,7 +437,7 @@ def _add_train(commands) -> None:
                           help="checkpoints saved (default: 10)")
     training.add_argument("--init", default=None,
                           help="start from the model of a previous run (its directory), e.g. balance before "
-                               "swingup, or to fine-tune with a randomization")
+                               "swingup, swingup before swingup_follow, or to fine-tune with a randomization")
     training.add_argument("--out", default=None, help="run directory (default: runs/ALGO_TASK_SEED)")
     training.set_defaults(run=_train)
 
