@@ -22,13 +22,12 @@ from qube_suite import evaluate
 from qube_suite.policies import load_policy, shipped
 
 
-def evaluate_on_fresh_qubes(policy, domain: str, task: str, episodes: int, seed: int,
-                            domain_kwargs: dict | None = None) -> dict:
+def evaluate_on_fresh_qubes(policy, domain: str, task: str, episodes: int, seed: int) -> dict:
     """`evaluate(...).to_dict()` with every episode on a fresh Qube: on the hardware substitute,
     an episode that ends with the arm flung past its limit would otherwise stop the board in the
     next reset (as on a real Qube) and end the evaluation."""
-    results = [evaluate(policy, domain=domain, task=task, episodes=1, seed=seed + episode,
-                        domain_kwargs=domain_kwargs) for episode in range(episodes)]
+    results = [evaluate(policy, domain=domain, task=task, episodes=1, seed=seed + episode)
+               for episode in range(episodes)]
     returns = [r for result in results for r in result.returns]
     return {"mean_return": float(np.mean(returns)), "std_return": float(np.std(returns)),
             "success_rate": float(np.mean([s for result in results for s in result.successes])),

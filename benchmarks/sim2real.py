@@ -32,8 +32,8 @@ import pathlib
 import shutil
 
 import numpy as np
-from policies import evaluate_on_fresh_qubes  # benchmarks/policies.py
 
+from qube_suite import evaluate
 from qube_suite.hardware.plant import plant_parameters
 from qube_suite.policies import load_policy
 from qube_suite.randomization.presets import PRESETS
@@ -147,16 +147,16 @@ def episode_plant(condition: str, seed: int) -> dict[str, float]:
 
 def score(job: tuple[str, str, str, int, int]) -> dict:
     """Evaluate one (run, policy file, condition) over `episodes` episodes from `seed`, each on a
-    fresh Qube (`evaluate_on_fresh_qubes`), each hardware episode on its own `episode_plant`."""
+    fresh Qube (see `benchmarks/policies.py`), each hardware episode on its own `episode_plant`."""
     run, path, condition, episodes, seed = job
     domain = CONDITIONS[condition][0]
     policy = load_policy(path)
-    results = [evaluate_on_fresh_qubes(policy, domain, "swingup", 1, seed + episode,
-                                       None if domain == "qube" else
-                                       {"plant": episode_plant(condition, seed + episode)})
+    results = [evaluate(policy, domain=domain, task="swingup", episodes=1, seed=seed + episode,
+                        domain_kwargs=None if domain == "qube" else
+                        {"plant": episode_plant(condition, seed + episode)})
                for episode in range(episodes)]
-    returns = [r for result in results for r in result["returns"]]
-    successes = round(sum(result["success_rate"] for result in results))
+    returns = [result.returns[0] for result in results]
+    successes = sum(result.successes[0] for result in results)
     low, high = bootstrap_interval(returns)
     success_low, success_high = wilson_interval(successes, episodes)
     return {"run": run, "condition": condition, "mean_return": float(np.mean(returns)),

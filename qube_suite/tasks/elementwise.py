@@ -14,9 +14,9 @@ import numpy as np
 
 def maximum(x, y):
     """The larger of `x` and `y`, elementwise for arrays."""
-    if type(x) is float and type(y) is float:
-        return x if x >= y else y
-    return np.maximum(x, y) if isinstance(x, np.ndarray) or isinstance(y, np.ndarray) else max(x, y)
+    if type(x) is np.ndarray or type(y) is np.ndarray:  # type(), not isinstance: the float path is hot
+        return np.maximum(x, y)
+    return x if x >= y else y
 
 
 def cos(x):
