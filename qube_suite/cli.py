@@ -361,6 +361,8 @@ def _eval(args: argparse.Namespace) -> int:
         print(f"  return {summary['mean_return']:.1f} +- {summary['std_return']:.1f}, "
               f"success {100 * summary['success_rate']:.0f} %, compute per step "
               f"{summary['step_time_median_ms']:.3f} ms median, {summary['step_time_p99_ms']:.3f} ms p99")
+        if summary["follow_error"] is not None:
+            print(f"  arm from its target after the first 2 s: {summary['follow_error']:.3f} rad on average")
     return 0
 
 

@@ -10,6 +10,10 @@ Success, per task (documented in the README):
   * dampen tasks: not terminated, and the pendulum within 10 degrees of hanging
     throughout the final 2 s;
   * rotor: at least 5 net revolutions.
+
+Follow tasks also report how well the arm follows its target: the mean of
+|theta - theta_target| (rad) over every step after an episode's first 2 s (the
+return hides it: the arm's share of the reward is small).
 """
 
 from __future__ import annotations
@@ -47,6 +51,9 @@ class EvaluationResult:
     successes: list[bool]
     step_times: np.ndarray = dataclasses.field(repr=False)
     step_cpu_times: np.ndarray = dataclasses.field(repr=False)
+    follow_error: float | None = None
+    """Mean |theta - theta_target| (rad) over the steps after each episode's first 2 s; None for a
+    task without a target or when no episode lasted 2 s."""
 
     @property
     def mean_return(self) -> float:
@@ -67,6 +74,7 @@ class EvaluationResult:
             "episodes": self.episodes, "seed": self.seed,
             "mean_return": self.mean_return, "std_return": self.std_return,
             "success_rate": self.success_rate, "returns": self.returns,
+            "follow_error": self.follow_error,
             "step_time_median_ms": float(np.median(self.step_times) * 1e3),
             "step_time_p99_ms": float(np.percentile(self.step_times, 99) * 1e3),
             "step_cpu_time_p99_ms": float(np.percentile(self.step_cpu_times, 99) * 1e3),
@@ -124,7 +132,10 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
     if isinstance(policy, str):
         policy = policy_for(policy, environment)
     hanging_goal = task.startswith("dampen")
+    follows_target = getattr(environment.task, "follows_target", False)
+    settled = round(SETTLED_TIME * environment.control_frequency)
     returns, successes, step_times, step_cpu_times = [], [], [], []
+    arm_errors = []
     bar = tqdm(total=episodes, unit="episode", disable=not progress, desc=f"{name} on {domain}/{task}")
     try:
         for episode in range(episodes):
@@ -142,6 +153,8 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
                 episode_return += timestep.reward
                 alpha = environment.physics.pendulum_angle()
                 errors.append(math.pi - abs(alpha) if hanging_goal else abs(alpha))
+                if follows_target and len(errors) > settled:
+                    arm_errors.append(abs(environment.physics.arm_angle() - environment.task.target))
             returns.append(float(episode_return))
             successes.append(succeeded(task, np.array(errors), timestep.discount == 0.0,
                                        getattr(environment.task, "revolutions", 0),
@@ -153,4 +166,4 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
         if hasattr(policy, "close"):
             policy.close()
     return EvaluationResult(domain, task, name, episodes, seed, returns, successes, np.array(step_times),
-                            np.array(step_cpu_times))
+                            np.array(step_cpu_times), float(np.mean(arm_errors)) if arm_errors else None)

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from qube_suite import cli, evaluate
+from qube_suite import baselines, cli, evaluate, suite
 from qube_suite.evaluation import succeeded
 
 SETTLED = 500  # 2 s at 250 Hz
@@ -39,6 +39,24 @@ def test_evaluate_accepts_any_callable_and_reports_failure():
     result = evaluate(lambda observation: 3.0, task="balance", episodes=2, seed=0)
     assert result.success_rate == 0.0 and result.mean_return < 100
     assert result.policy == "function"
+
+
+def test_follow_error_is_the_mean_arm_distance_from_the_target_after_two_seconds():
+    result = evaluate("balance", task="balance_follow", episodes=1, seed=4)
+    env = suite.load("qube", "balance_follow", task_kwargs={"random": 4})
+    controller = baselines.for_environment("balance", env)
+    timestep, distances = env.reset(), []
+    while not timestep.last():
+        timestep = env.step(controller(timestep.observation))
+        distances.append(abs(timestep.observation["state"][0] - timestep.observation["target"][0]))
+    assert len(distances) == 2048 and result.follow_error == pytest.approx(np.mean(distances[SETTLED:]))
+    assert 0.3 < result.follow_error < 1.0                                # the arm stays near 0
+    assert evaluate("balance", task="balance", episodes=1).follow_error is None
+
+
+def test_follow_error_is_none_when_no_episode_lasts_two_seconds():
+    result = evaluate(lambda observation: 3.0, task="balance_follow", episodes=1)
+    assert result.follow_error is None and result.to_dict()["follow_error"] is None
 
 
 def test_eval_json_schema(capsys):
