@@ -147,6 +147,13 @@ def test_shipped_policies_reach_their_targets_on_unseen_seeds(spec, task, least)
     assert min(result.returns) >= least and result.success_rate == 1.0, result.returns
 
 
+@pytest.mark.parametrize(("spec", "task"), [("ppo:swingup", "swingup"),
+                                           ("ppo:swingup_follow", "swingup_follow")])
+def test_shipped_swingups_transfer_to_the_hardware_substitute(spec, task):
+    result = evaluate(spec, domain="qube_hardware", task=task, episodes=2, seed=1000)
+    assert min(result.returns) >= 1300 and result.success_rate == 1.0, result.returns
+
+
 def test_eval_cli_runs_a_shipped_policy(capsys):
     assert cli.main(["eval", "--task", "balance", "--controller", "ppo:balance", "--episodes", "1",
                      "--json"]) == 0
