@@ -155,11 +155,13 @@ def test_realtime_task_follows_the_wall_clock_at_250_hz():
 
 
 def test_samples_missed_in_realtime_overflow_the_task_buffer():
+    start = time.perf_counter()
     overwrite = Rig(realtime=True)
     time.sleep(0.05)                                                   # about 12 samples fall due
     overwrite.read()
-    assert 8 <= overwrite.board.task_get_buffer_overflows(overwrite.task) <= 30
-    assert overwrite.board.time == pytest.approx(0.05, abs=0.03)       # the newest sample was read
+    elapsed = time.perf_counter() - start                              # more on a busy machine
+    assert 8 <= overwrite.board.task_get_buffer_overflows(overwrite.task) <= elapsed * 250 + 2
+    assert 0.045 <= overwrite.board.time <= elapsed                    # the newest sample was read
     strict = Rig(realtime=True, overflow_mode=_hil_sim.BufferOverflowMode.ERROR_ON_OVERFLOW)
     time.sleep(0.02)
     with pytest.raises(HILError, match="overflow"):
@@ -178,10 +180,11 @@ def test_full_buffer_keeps_the_newest_or_the_oldest_sample(mode, newest):
 
 
 def test_realtime_plant_keeps_moving_between_calls():
+    start = time.perf_counter()
     rig = Rig(realtime=True, state=[0.0, 0.3, 0.0, 0.0])
     time.sleep(0.1)
     assert rig.board.true_state()[1] > 0.35                             # fell while nobody called
-    assert rig.board.time == pytest.approx(0.1, abs=0.05)
+    assert 0.095 <= rig.board.time <= time.perf_counter() - start
 
 
 def test_led_outputs():
