@@ -81,6 +81,11 @@ class EvaluationResult:
         }
 
 
+def settled_steps(control_frequency: float) -> int:
+    """Control steps in SETTLED_TIME at `control_frequency` (Hz); at least 1."""
+    return max(1, round(SETTLED_TIME * control_frequency))
+
+
 def succeeded(task: str, pendulum_errors: np.ndarray, terminated: bool, revolutions: int,
               control_frequency: float) -> bool:
     """The task's success rule (see the module docstring) for one finished episode.
@@ -89,7 +94,7 @@ def succeeded(task: str, pendulum_errors: np.ndarray, terminated: bool, revoluti
     """
     if task == "rotor":
         return revolutions >= ROTOR_REVOLUTIONS
-    settled = max(1, round(SETTLED_TIME * control_frequency))
+    settled = settled_steps(control_frequency)
     return (not terminated and len(pendulum_errors) >= settled
             and bool(np.all(pendulum_errors[-settled:] <= GOAL_TOLERANCE)))
 
@@ -133,7 +138,7 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
         policy = policy_for(policy, environment)
     hanging_goal = task.startswith("dampen")
     follows_target = getattr(environment.task, "follows_target", False)
-    settled = round(SETTLED_TIME * environment.control_frequency)
+    settled = settled_steps(environment.control_frequency)
     returns, successes, step_times, step_cpu_times = [], [], [], []
     arm_errors = []
     bar = tqdm(total=episodes, unit="episode", disable=not progress, desc=f"{name} on {domain}/{task}")
