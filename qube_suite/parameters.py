@@ -25,7 +25,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import types
+from collections.abc import Mapping
+from typing import Any
 
 
 @dataclasses.dataclass(frozen=True)
@@ -107,3 +110,25 @@ def _check_nonpositive(name: str, value: float) -> None:
     minimum_is_zero = may_be_zero(name)
     if value < 0.0 or (value == 0.0 and not minimum_is_zero):
         raise ValueError(f"parameter {name!r} must be {'>= 0' if minimum_is_zero else '> 0'}, got {value}")
+
+
+def values_of(source: Mapping[str, float] | str | os.PathLike | Any | None) -> dict[str, float]:
+    """Parameter overrides by long name from `source`: a mapping, the path of a calibration file
+    (YAML with a `parameters` mapping, `qube_suite.calibration`), or an object with a `parameters`
+    mapping (a `Calibration`); None gives none. Names are checked by `resolve`, not here."""
+    if source is None:
+        return {}
+    if isinstance(source, (str, os.PathLike)):
+        import yaml
+
+        with open(source, encoding="utf-8") as file:
+            content = yaml.safe_load(file)
+        if not isinstance(content, Mapping) or not isinstance(content.get("parameters"), Mapping):
+            raise ValueError(f"{os.fspath(source)} is not a calibration file: it has no 'parameters' mapping")
+        return dict(content["parameters"])
+    if not isinstance(source, Mapping) and isinstance(getattr(source, "parameters", None), Mapping):
+        return dict(source.parameters)
+    if not isinstance(source, Mapping):
+        raise TypeError(f"parameters must be a mapping, a calibration file's path or a Calibration, "
+                        f"got {type(source).__name__}")
+    return dict(source)

@@ -7,6 +7,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import scipy.linalg
 
+from qube_suite import parameters as params
 from qube_suite.baselines.base import Controller
 from qube_suite.baselines.linearization import linearize
 from qube_suite.domains import qube
@@ -16,6 +17,8 @@ STATE_WEIGHTS = (2.0, 20.0, 0.05, 0.5)
 """Default LQR state weights on [theta, alpha, dtheta, dalpha] (rad, rad/s)."""
 VOLTAGE_WEIGHT = 1.0
 """Default LQR weight on the voltage (V)."""
+COULOMB = ("arm_friction", "pendulum_friction")
+"""Parameters the linearisation leaves out."""
 
 
 def lqr_design(control_frequency: float, parameters: Mapping[str, float] | None = None,
@@ -25,9 +28,11 @@ def lqr_design(control_frequency: float, parameters: Mapping[str, float] | None 
 
     For the model linearised at rest with the pendulum at `pendulum_angle` (rad; 0
     upright, pi hanging) over one control period at `control_frequency` (Hz), with
-    the given physical `parameters`; S solves the discrete Riccati equation.
+    the given physical `parameters`; S solves the discrete Riccati equation. Coulomb friction
+    is left out: it has no derivative at rest (the `Controller`'s observer cancels it instead).
     """
-    physics = qube.make_physics(control_frequency, parameters)
+    smooth = {name: value for name, value in params.values_of(parameters).items() if name not in COULOMB}
+    physics = qube.make_physics(control_frequency, smooth)
     nstep = qube.substeps_per_control_period(control_frequency)
     a, b = linearize(physics, np.array([0.0, pendulum_angle, 0.0, 0.0]), 0.0, nstep)
     q, r = np.diag(state_weights), np.array([[voltage_weight]])

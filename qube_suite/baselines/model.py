@@ -35,6 +35,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Mapping
+from typing import Any
 
 from qube_suite import parameters as params
 
@@ -63,9 +64,10 @@ class RigidBodyModel:
     """km (V s/rad)."""
 
     @classmethod
-    def from_parameters(cls, overrides: Mapping[str, float] | None = None) -> RigidBodyModel:
-        """The model for the nominal parameters updated by `overrides` (long names)."""
-        p = params.resolve(dict(overrides or {}))
+    def from_parameters(cls, overrides: Mapping[str, float] | Any = None) -> RigidBodyModel:
+        """The model for the nominal parameters updated by `overrides` (long names, or a calibration:
+        see `qube_suite.parameters.values_of`)."""
+        p = params.resolve(params.values_of(overrides))
         mp, lp, lr = p["pendulum_mass"], p["pendulum_length"], p["arm_length"]
         half = lp / 2.0
         transverse = params.pendulum_inertia(mp, lp)

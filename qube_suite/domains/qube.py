@@ -13,6 +13,7 @@ import contextlib
 import math
 import pathlib
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -379,14 +380,15 @@ def physics_timestep(control_frequency: float) -> float:
     return 1.0 / (control_frequency * substeps_per_control_period(control_frequency))
 
 
-def make_physics(control_frequency: float = 250.0,
-                 parameters: Mapping[str, float] | None = None) -> Physics:
-    """A simulated Qube for control at `control_frequency` (Hz) with `parameters`."""
+def make_physics(control_frequency: float = 250.0, parameters: Mapping[str, float] | Any = None) -> Physics:
+    """A simulated Qube for control at `control_frequency` (Hz) with `parameters`: by long name, or
+    a calibration (`Calibration` or its file's path; see `qube_suite.parameters.values_of`)."""
     check_control_frequency(control_frequency)
+    overrides = params.values_of(parameters)
     physics = Physics.from_xml_path(str(MODEL_PATH))
     physics.model.opt.timestep = physics_timestep(control_frequency)
-    if parameters:
-        physics.set_parameters(parameters)
+    if overrides:
+        physics.set_parameters(overrides)
     return physics
 
 
