@@ -41,15 +41,19 @@ class Fitted:
     scale: float
     unit: str
     absolute_tolerance: float = 0.0
-    """Below this (in the parameter's unit) an estimate counts as 0: friction-like parameters."""
+    """Smallest 95 % half-width (its unit): friction-like parameters, whose truth may be 0."""
+    relative_tolerance: float = 0.0
+    """Smallest 95 % half-width as a fraction of the estimate: what the model leaves out (the motor's
+    inductance, the amplifier's and the current sensor's own errors) is not in the residual's spread."""
 
 
 FITTED: tuple[Fitted, ...] = (
-    Fitted("motor_resistance", parameters.NOMINAL["motor_resistance"], "ohm"),
-    Fitted("motor_back_emf", parameters.NOMINAL["motor_back_emf"], "V s/rad"),
-    Fitted("motor_torque_constant", parameters.NOMINAL["motor_torque_constant"], "N m/A"),
-    Fitted("pendulum_mass", parameters.NOMINAL["pendulum_mass"], "kg"),
-    Fitted("pendulum_length", parameters.NOMINAL["pendulum_length"], "m"),
+    Fitted("motor_resistance", parameters.NOMINAL["motor_resistance"], "ohm", relative_tolerance=0.005),
+    Fitted("motor_back_emf", parameters.NOMINAL["motor_back_emf"], "V s/rad", relative_tolerance=0.005),
+    Fitted("motor_torque_constant", parameters.NOMINAL["motor_torque_constant"], "N m/A",
+           relative_tolerance=0.005),
+    Fitted("pendulum_mass", parameters.NOMINAL["pendulum_mass"], "kg", relative_tolerance=0.005),
+    Fitted("pendulum_length", parameters.NOMINAL["pendulum_length"], "m", relative_tolerance=0.005),
     Fitted("arm_damping", 1.0e-5, "N m s/rad", 2.0e-5),
     Fitted("arm_friction", 1.0e-3, "N m", 1.5e-4),
     Fitted("cable_stiffness", 1.0e-3, "N m/rad", 1.5e-4),

@@ -17,7 +17,7 @@ Three parts, combined as standard deviations:
    calibrated on the substitute against known plants (see its note).
 
 The 95 % half-width is 1.96 times the combined standard deviation, and never less
-than the parameter's absolute tolerance (`identifiability.Fitted.absolute_tolerance`).
+than the parameter's tolerances (`identifiability.Fitted`).
 """
 
 from __future__ import annotations
@@ -68,15 +68,31 @@ def fixed_parameter_std(values: dict[str, float]) -> dict[str, float]:
     return {name: relative * abs(values[name]) if name in TORQUE_SCALED else 0.0 for name in values}
 
 
+def standard_deviations(result: FitResult, inflation: float = INFLATION) -> dict[str, tuple[float, float]]:
+    """(statistical, fixed-parameter) standard deviation of every unknown by name, in its unit: the
+    block sandwich's times `inflation`, and the fixed parameters' (see the module)."""
+    statistical = np.sqrt(np.maximum(np.diag(block_covariance(result)), 0.0)) * SCALES * inflation
+    fixed = fixed_parameter_std(result.values)
+    return {name: (float(sigma), fixed[name]) for name, sigma in zip(NAMES, statistical, strict=True)}
+
+
+def half_width(name: str, value: float, statistical: float, fixed: float) -> float:
+    """95 % half-width of unknown `name` estimated at `value` from its two standard deviations (see
+    the module)."""
+    quantity = QUANTITIES[name]
+    return max(Z95 * math.hypot(statistical, fixed), quantity.absolute_tolerance,
+               quantity.relative_tolerance * abs(value))
+
+
+QUANTITIES = {q.name: q for q in FITTED + OFFSETS}
+
+
 def intervals(result: FitResult) -> dict[str, tuple[float, float]]:
     """95 % interval (low, high) of every unknown by name, in its unit (see the module)."""
     values = result.values
-    std = np.sqrt(np.maximum(np.diag(block_covariance(result)), 0.0)) * SCALES * INFLATION
-    fixed = fixed_parameter_std(values)
-    tolerance = {q.name: q.absolute_tolerance for q in FITTED + OFFSETS}
     found = {}
-    for name, sigma in zip(NAMES, std, strict=True):
-        half = max(Z95 * math.hypot(float(sigma), fixed[name]), tolerance[name])
+    for name, (statistical, fixed) in standard_deviations(result).items():
+        half = half_width(name, values[name], statistical, fixed)
         low = values[name] - half
         if name in parameters.PARAMETERS:
             low = max(low, 0.0)

@@ -1,10 +1,10 @@
 """How well a model predicts a recording: MuJoCo rollouts from recorded states, 0.5 s ahead.
 
 From a start sample, the simulated Qube (`domains.qube`, the model users train on,
-with the parameters under test) is put in the state estimated there (angles plus
-the encoder offsets, lag-free velocities) and driven by the recorded voltages,
-shifted by the latency, for `HORIZON` seconds; its angles are compared with the
-encoders'. Many short rollouts rather than one long one: the pendulum is chaotic
+with the parameters under test) is put in the state estimated there from the
+recording up to the start, and driven by the recorded voltages, shifted by the
+latency, for `HORIZON` seconds; its angles are compared with the encoders'.
+Many short rollouts rather than one long one: the pendulum is chaotic
 at large swings, so a long rollout's error says more about the start than the model.
 """
 
@@ -22,6 +22,10 @@ from qube_suite.domains import qube
 
 HORIZON = 0.5
 """How far ahead the rollouts predict (s)."""
+ESTIMATION_TIME = 0.1
+"""Recorded time before each start (s) that its state is estimated from."""
+ESTIMATION_ITERATIONS = 2
+"""Gauss-Newton iterations of that estimate."""
 START_SPACING = 0.1
 """Time between the starts of successive rollouts (s)."""
 
@@ -50,38 +54,73 @@ class Predictions:
 def predict(measurements: Measurements, parameters: Mapping[str, float], samples: np.ndarray,
             latency: int = 0, offsets: tuple[float, float] = (0.0, 0.0)) -> Predictions:
     """0.5 s-ahead rollouts of the simulated Qube with `parameters` (long names) from starts every
-    `START_SPACING` within the sample indices `samples` (whose horizons lie within them too).
+    `START_SPACING` within the sample indices `samples` (whose windows lie within them too).
 
-    `latency`: samples between a recorded voltage and its action; `offsets`: the encoders' offsets
-    (rad), added to the recorded angles.
+    The state at each start is estimated from the `ESTIMATION_TIME` before it only: the model's
+    rollout over that time is fitted to the recorded angles (Gauss-Newton on its initial angles and
+    speeds, which start from the lag-free filter's estimate), so a prediction uses no recorded
+    angle after its start. `latency`: samples between a recorded voltage and its action;
+    `offsets`: the encoders' offsets (rad), added to the recorded angles.
     """
     h = measurements.sample_time
-    steps = round(HORIZON / h)
+    steps, past = round(HORIZON / h), round(ESTIMATION_TIME / h)
     inside = np.zeros(len(measurements), dtype=bool)
     inside[samples] = True
     spacing = max(1, round(START_SPACING / h))
-    candidates = np.arange(latency + 25, len(measurements) - steps - 25, spacing)
-    starts = np.array([k for k in candidates if inside[k:k + steps + 1].all()], dtype=int)
+    candidates = np.arange(past + latency + 25, len(measurements) - steps - 25, spacing)
+    starts = np.array([k for k in candidates if inside[k - past:k + steps + 1].all()], dtype=int)
+    angles = np.stack([measurements.theta + offsets[0], measurements.alpha + offsets[1]], axis=-1)
     theta, dtheta = measurements.derivatives(measurements.theta)
     alpha, dalpha = measurements.derivatives(measurements.alpha)
-    measured_angles = np.stack([measurements.theta + offsets[0], measurements.alpha + offsets[1]], axis=-1)
-    physics = qube.make_physics(1.0 / h, parameters)
-    try:
-        model, data = physics.model.ptr, physics.data.ptr
-        substeps = qube.substeps_per_control_period(1.0 / h)
+    first = starts - past
+    guess = np.stack([theta[first] + offsets[0], alpha[first] + offsets[1], dtheta[first], dalpha[first]],
+                     axis=-1)
+    total = past + steps
+    voltages = np.stack([measurements.voltage[j - latency:j - latency + total] for j in first])
+    recorded = np.stack([angles[j:j + total + 1] for j in first])
+    with _Simulator(parameters, 1.0 / h) as simulator:
+        state = simulator.fit_initial_state(guess, voltages[:, :past], recorded[:, :past + 1])
+        predicted = simulator.rollout(state, voltages)[:, past:]
+    return Predictions(starts=starts, time=np.arange(steps + 1) * h, predicted=predicted,
+                       measured=recorded[:, past:])
+
+
+class _Simulator:
+    """Batched rollouts of the simulated Qube (`mujoco.rollout`), one physics step per sample or more."""
+
+    def __init__(self, parameters: Mapping[str, float], control_frequency: float):
+        self._physics = qube.make_physics(control_frequency, parameters)
+        self._substeps = qube.substeps_per_control_period(control_frequency)
+
+    def __enter__(self) -> _Simulator:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._physics.close()
+
+    def rollout(self, states: np.ndarray, voltages: np.ndarray) -> np.ndarray:
+        """Angles [theta, alpha] (rollouts, samples + 1, 2) from `states` (rollouts, 4) under
+        `voltages` (rollouts, samples), each held for one sample."""
+        model, data = self._physics.model.ptr, self._physics.data.ptr
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-        initial = np.empty((len(starts), mujoco.mj_stateSize(model, spec)))
-        for row, k in enumerate(starts):
-            mujoco.mj_resetData(model, data)
-            data.qpos[:] = (theta[k] + offsets[0], alpha[k] + offsets[1])
-            data.qvel[:] = (dtheta[k], dalpha[k])
-            mujoco.mj_getState(model, data, initial[row], spec)
-        voltage = measurements.voltage
-        control = np.stack([np.repeat(voltage[k - latency:k - latency + steps], substeps) for k in starts])
-        state, _ = mujoco.rollout.rollout(model, data, initial, control[..., None])
-    finally:
-        physics.close()
-    qpos = state[:, substeps - 1::substeps, 1:3]  # after each control period; [0] is time
-    predicted = np.concatenate([initial[:, None, 1:3], qpos], axis=1)
-    measured = np.stack([measured_angles[k:k + steps + 1] for k in starts])
-    return Predictions(starts=starts, time=np.arange(steps + 1) * h, predicted=predicted, measured=measured)
+        initial = np.zeros((len(states), mujoco.mj_stateSize(model, spec)))
+        initial[:, 1:3], initial[:, 3:5] = states[:, :2], states[:, 2:]  # time, qpos, qvel, ...
+        control = np.repeat(voltages, self._substeps, axis=1)[..., None]
+        trajectory, _ = mujoco.rollout.rollout(model, data, initial, control)
+        qpos = trajectory[:, self._substeps - 1::self._substeps, 1:3]
+        return np.concatenate([states[:, None, :2], qpos], axis=1)
+
+    def fit_initial_state(self, guess: np.ndarray, voltages: np.ndarray, recorded: np.ndarray) -> np.ndarray:
+        """The states at the windows' starts whose rollouts under `voltages` best match the `recorded`
+        angles (Gauss-Newton from `guess`, finite differences), and where they end."""
+        state = guess.copy()
+        steps = np.array([1e-4, 1e-4, 1e-3, 1e-3])
+        for _ in range(ESTIMATION_ITERATIONS):
+            batch = np.concatenate([state[None], state[None] + np.diag(steps)[:, None, :]], axis=0)
+            angles = self.rollout(batch.reshape(-1, 4), np.tile(voltages, (5, 1))).reshape(5, len(state), -1)
+            residual = angles[0] - recorded.reshape(len(state), -1)
+            jacobian = (angles[1:] - angles[0]) / steps[:, None, None]        # (4, rollouts, samples x 2)
+            normal = np.einsum("irk,jrk->rij", jacobian, jacobian) + 1e-9 * np.eye(4)
+            gradient = np.einsum("irk,rk->ri", jacobian, residual)
+            state -= np.linalg.solve(normal, gradient[..., None])[..., 0]
+        return state
