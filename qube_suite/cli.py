@@ -453,7 +453,67 @@ def _add_list(commands) -> None:
     listing.set_defaults(run=_list)
 
 
-SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_train, _add_bench)
+# -- calibrate -------------------------------------------------------------------------------
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from qube_suite import calibration
+    from qube_suite.calibration import calibration_file
+
+    out = pathlib.Path(args.out)
+    if out.suffix not in (".yaml", ".yml"):
+        raise ValueError(f"--out must name a .yaml file, got {args.out!r}")
+    if args.recording is not None:
+        result = calibration.calibrate_recording(args.recording, board_type=args.board)
+    else:
+        domain_kwargs = {} if args.board is None else {"board": args.board}
+        recording = out.with_suffix(".jsonl")
+        print(f"running the {args.seconds:g} s excitation experiment on {args.domain}; recording {recording}")
+        result = calibration.calibrate(args.domain, domain_kwargs, seconds=args.seconds, seed=args.seed,
+                                       recording=recording)
+    result.save(out)
+    print(f"calibration: {out}; randomization config: {calibration_file.randomization_path(out)}")
+    try:
+        from qube_suite.calibration import report
+
+        page, figure = report.write(result, out.with_suffix(".html"))
+        print(f"report: {page} ({figure})")
+    except ImportError as error:
+        print(f"no report: {error}")
+    prediction = result.prediction
+    print(f"0.5 s-ahead prediction on held-out segments: {prediction['calibrated_rms']:.4f} rad "
+          f"(nominal model: {prediction['nominal_rms']:.4f} rad)")
+    for name, (low, high) in result.intervals.items():
+        print(f"  {name:24s} {result.parameters[name]:10.4g}   95 % [{low:.4g}, {high:.4g}]")
+    return 0
+
+
+def _add_calibrate(commands) -> None:
+    calibrate = commands.add_parser(
+        "calibrate", help="identify a Qube's model from a one-minute experiment",
+        description="Run the excitation experiment on a Qube (or take a recording of it) and fit the "
+                    "model's parameters with 95 % intervals; write the calibration (YAML), a randomization "
+                    "config centred on it and a report (HTML and PNG) beside --out.",
+        epilog="examples:\n"
+               "  qube-suite calibrate --domain qube_hardware --board qube_servo2_usb --out my_qube.yaml\n"
+               "  qube-suite calibrate --recording my_qube.jsonl --out my_qube.yaml",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    source = calibrate.add_mutually_exclusive_group(required=True)
+    source.add_argument("--domain", choices=("qube_hardware",),
+                        help="run the experiment on this domain (a board: the substitute by default; the fit "
+                             "needs the motor current, which only a board measures)")
+    source.add_argument("--recording", help="fit an experiment recorded earlier (JSON lines)")
+    calibrate.add_argument("--board", default=None,
+                           help="board: simulated (default), or the real board's type, e.g. qube_servo2_usb; "
+                                "with --recording, the board type the recording must come from")
+    calibrate.add_argument("--seconds", type=_positive_float, default=60.0,
+                           help="experiment duration, at most 60 s (default: 60)")
+    calibrate.add_argument("--seed", type=int, default=0, help="seed of the excitation (default: 0)")
+    calibrate.add_argument("--out", required=True, help="the calibration file to write (.yaml)")
+    calibrate.set_defaults(run=_calibrate)
+
+
+SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_train, _add_bench, _add_calibrate)
 """Parser builders of the subcommands, in the order `--help` lists them."""
 
 
