@@ -1,27 +1,42 @@
 """The fit: the Qube's equations of motion and its motor circuit against the measured signals.
 
-An equation-error (inverse-dynamics) fit: at every sample the measured angles, their
-lag-free derivatives (`measurements.Measurements.derivatives`) and the motor current
-must satisfy
+An equation-error (inverse-dynamics) fit. The motor circuit must hold at every sample,
 
-    motor circuit   V(k - 1 - d) = Rm i(k) + km theta'(k)                  (d: latency, samples)
-    arm             kt i = M11 theta'' + M12 alpha'' + 2 K s c theta' alpha' + mp Lr l s alpha'^2
-                           + Dr theta' + Fr sign(theta') + kc theta - arm_torque_offset
-    pendulum        0 = M12 theta'' + M22 alpha'' - K s c theta'^2 - mp g l s + Dp alpha' + Fp sign(alpha')
+    V(k - 1 - d) = Rm i(k) + km theta'(k)          (d: latency in samples; the current read at
+                                                    sample k answers the voltage of the interval before)
 
-with s, c of alpha + alpha_offset and the coefficients of `baselines.model` (the same
-rigid-body model as `assets/qube.xml`). Coulomb friction is exact here: its sign
-term is used only where the joint slides (its speed stays above `SLIDING_SPEED`
-across the smoothing window), so the fit never has to model sticking. The residuals
-are weighted by each equation's own spread and minimised over the parameters scaled
-near 1 (`identifiability.FITTED`) by `mujoco.minimize.least_squares` (Gauss-Newton
-with box bounds). The latency d is the integer that best explains the current.
+and each joint's momentum balance dp/dt = torque over every window of `INTERVAL`
+samples (0.2 s), in its weak form: multiplied by w(t) = sin^2(pi t / T), which is 0
+at both ends, and integrated by parts,
 
-Why equation error rather than fitting MuJoCo rollouts (output error): its residual
-is an explicit function of the parameters, so the whole fit takes well under a
-second and cannot be trapped by the pendulum's chaos or by MuJoCo's soft Coulomb
-friction (which creeps where a real joint sticks); MuJoCo rollouts then check the
-fitted model, `prediction` (0.5 s-ahead predictions on held-out segments).
+    integral of (w torque + w' p) dt = 0,
+    arm:       p = M11 theta' + M12 alpha',
+               torque = kt i - Dr theta' - Fr sign(theta') - kc theta + arm_torque_offset
+    pendulum:  p = M12 theta' + M22 alpha',
+               torque = K s c theta'^2 + mp Lr l s theta' alpha' + mp g l s - Dp alpha' - Fp sign(alpha')
+
+with s, c of alpha + pendulum_encoder_offset and the coefficients of `baselines.model`
+(the rigid-body model of `assets/qube.xml`). The weak form needs the angles' first
+derivative only, and only under an integral against a smooth weight: the smoothing
+filter's error on fast motion (its velocities are off by 0.05 rad/s RMS on the
+substitute) averages out instead of biasing the estimates, as accelerations from a
+double derivative or momenta at window ends did (pendulum mass 4 to 10 % low on the
+default substitute, against 1 % now). The motor torque is kt times the current read
+at the end of each sample interval. Coulomb friction is exact: a window enters a
+joint's equation only if the joint slides throughout (speed above `SLIDING_SPEED`),
+so the fit never models sticking.
+
+The residuals, weighted by each equation's own spread, are minimised over the
+unknowns scaled near 1 (`identifiability.FITTED`, `OFFSETS`) by
+`mujoco.minimize.least_squares` (Gauss-Newton / Levenberg-Marquardt with box
+bounds); the latency d is the integer that best explains the current.
+
+Why equation error rather than fitting MuJoCo rollouts to the angles (output error,
+`mujoco.sysid`'s rollout residuals): the residual is an explicit function of the
+parameters, so the fit takes about a second and can neither be trapped by the
+pendulum's chaos at large swings nor biased by MuJoCo's Coulomb friction, which
+is soft where the Qube's is not. MuJoCo rollouts then judge the fitted model:
+`prediction` (0.5 s-ahead predictions on held-out segments).
 """
 
 from __future__ import annotations
