@@ -17,9 +17,9 @@ the fit) and reports
 * whether the model-based swing-up and balance controllers (`baselines`), built from the
   calibration, succeed on the plant (`--episodes` seeded episodes each, 3 V).
 
-With `--calibrate-intervals` it instead reports the inflation factor of the intervals'
-statistical part that gives 95 % coverage on its plants (use a different `--seed` from
-the validation run's), the number `intervals.INFLATION` is set from.
+With `--calibrate-intervals` it instead reports the fit's bias on the torque scale on its
+plants (use a different `--seed` from the validation run's), from which the bias bounds of
+`qube_suite.calibration.intervals` are set.
 
     python benchmarks/calibration.py [--plants 20] [--seed 1] [--episodes 2] [--out FILE.json]
     python benchmarks/calibration.py --calibrate-intervals --plants 10 --seed 100
@@ -159,28 +159,26 @@ def summarize(rows: list[dict]) -> dict:
 
 
 def calibrate_intervals(args: argparse.Namespace) -> dict:
-    """The inflation of the statistical standard deviations that gives 95 % coverage."""
+    """The fit's bias on the torque scale: relative error of kt / (Jr + Jm), and of the pendulum's
+    mass relative to kt, which the rotor's tolerance does not explain (`intervals.TORQUE_SCALE_BIAS`,
+    `intervals.PENDULUM_MASS_BIAS`)."""
     rng = np.random.default_rng(args.seed)
-    needed = []
+    scale, mass = [], []
     for index in range(args.plants):
         plant = hidden_plant(rng)
         true = truth(plant)
         recording = tempfile.mktemp(suffix=".jsonl")
         calibration.experiment.run(recording, "qube_hardware", {"plant": plant}, seed=index)
-        result = refit(recording)
-        values = result.values
-        for name, (statistical, fixed) in intervals.standard_deviations(result, inflation=1.0).items():
-            if name not in true:
-                continue
-            error = abs(values[name] - true[name])
-            if error <= intervals.half_width(name, values[name], 0.0, fixed):
-                needed.append(0.0)
-            else:  # smallest factor f with 1.96 hypot(f statistical, fixed) >= error
-                spread = math.sqrt(max((error / intervals.Z95) ** 2 - fixed**2, 0.0))
-                needed.append(spread / max(statistical, 1e-300))
-        print(f"plant {index}: factors needed {np.round(needed[-len(FITTED):], 2).tolist()}", flush=True)
-    return {"plants": args.plants, "inflation_for_95_percent": float(np.quantile(needed, 0.95)),
-            "inflation_for_90_percent": float(np.quantile(needed, 0.90))}
+        values = refit(recording).values
+        nominal = parameters.NOMINAL
+        inertia = parameters.arm_inertia(nominal["arm_mass"], nominal["arm_length"])
+        inertia += nominal["rotor_inertia"]
+        scale.append(values["motor_torque_constant"] / inertia / true["arm_acceleration_per_ampere"] - 1.0)
+        mass.append(values["pendulum_mass"] / values["motor_torque_constant"]
+                    / (true["pendulum_mass"] / true["motor_torque_constant"]) - 1.0)
+        print(f"plant {index}: kt / (Jr + Jm) {scale[-1]:+.4f}, mp / kt {mass[-1]:+.4f}", flush=True)
+    return {"plants": args.plants, "torque_scale_error": [min(scale), max(scale)],
+            "mass_per_torque_constant_error": [min(mass), max(mass)]}
 
 
 def main() -> None:
