@@ -53,7 +53,8 @@ def _figure(calibration: Calibration, m: measurements.Measurements):
     axes = figure.subplots(2, len(names), squeeze=False, sharex="col")
     for column, name in enumerate(names):
         rows = [i for i, phase in enumerate(phases) if phase == name]
-        chosen = rows[len(rows) // 4: len(rows) // 4 + 6: 2]  # a few successive rollouts
+        first = m.time[calibrated.starts[rows[len(rows) // 4]]]  # a few successive rollouts in one block
+        chosen = [i for i in rows if 0.0 <= m.time[calibrated.starts[i]] - first < 0.5][::2]
         for row, label in enumerate(("arm angle theta (rad)", "pendulum angle alpha (rad)")):
             ax = axes[row, column]
             for i in chosen:
