@@ -180,6 +180,14 @@ def test_short_recordings_and_recordings_without_currents_are_refused(tmp_path):
         experiment.run(tmp_path / "long.jsonl", seconds=61.0)
 
 
+def test_an_experiment_that_does_not_finish_leaves_no_recording(tmp_path):
+    from qube_suite.domains.qube_hardware import ResetError
+
+    with pytest.raises(ResetError):  # the settling before the experiment needs 0.5 s at rest
+        experiment.run(tmp_path / "experiment.jsonl", "qube_hardware", {"reset_timeout": 0.1})
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_recording_without_current_column_is_refused(recorded, tmp_path):
     source = recorded[0]
     with open(source) as file:

@@ -42,6 +42,8 @@ EXCITATION_VOLTAGE = 6.0
 """Largest motor voltage of the experiment (V)."""
 SAFE_ARM_ANGLE = math.radians(60.0)
 """Beyond this arm angle (rad) a stiff spring pulls the arm back."""
+SAFETY_SPRING = 40.0
+"""That spring (V/rad beyond SAFE_ARM_ANGLE)."""
 ARM_SPRING = 8.0
 """Centring spring on the arm (V/rad) during the arm excitation."""
 ARM_DAMPER = 0.4
@@ -111,7 +113,7 @@ class Excitation:
             volts = 0.0
         excess = abs(theta) - SAFE_ARM_ANGLE
         if excess > 0.0:
-            volts -= math.copysign(40.0 * excess, theta) + ARM_DAMPER * dtheta
+            volts -= math.copysign(SAFETY_SPRING * excess, theta) + ARM_DAMPER * dtheta
         return min(max(volts, -EXCITATION_VOLTAGE), EXCITATION_VOLTAGE)
 
 
@@ -120,7 +122,8 @@ def run(path: str | os.PathLike, domain: str = "qube_hardware",
     """Run the excitation experiment on `domain` and record it to `path`; return the path.
 
     `domain_kwargs` go to `suite.load` untouched (board, device, plant, ...). The Qube
-    starts hanging at rest (on hardware the reset controllers settle it first).
+    starts hanging at rest (on hardware the reset controllers settle it first). If the
+    experiment does not finish (a board error, a safety stop, Ctrl-C), the recording is removed.
     Raises ValueError for a duration outside (0, 60] s.
     """
     if not 0.0 < seconds <= MAX_SECONDS:
@@ -138,6 +141,9 @@ def run(path: str | os.PathLike, domain: str = "qube_hardware",
             while not timestep.last():
                 state = timestep.observation["state"]
                 timestep = environment.step([excitation(environment.physics.time(), state)])
+    except BaseException:
+        os.remove(path)  # an unfinished experiment cannot calibrate: leave nothing behind
+        raise
     finally:
         environment.close()
     return os.fspath(path)
