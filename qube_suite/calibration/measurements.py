@@ -78,7 +78,8 @@ class Measurements:
 def load(path: str | os.PathLike, board_type: str | None = None) -> Measurements:
     """The measurements of the experiment recorded at `path` (its first episode).
 
-    `board_type`: the board type the recording must come from (None: any supported one).
+    `board_type`: the board type (or board, e.g. "simulated") the recording must come from (None:
+    any supported one).
     Raises ValueError naming the problem for a recording that cannot be calibrated from.
     """
     path = os.fspath(path)
@@ -91,8 +92,9 @@ def load(path: str | os.PathLike, board_type: str | None = None) -> Measurements
     if recorded_type not in BOARD_TYPES:
         raise ValueError(f"{path} comes from board type {recorded_type!r}; calibration needs a recording "
                          f"from one of: {', '.join(BOARD_TYPES)}")
-    if board_type is not None and recorded_type != board_type:
-        raise ValueError(f"{path} comes from board type {recorded_type!r}, not {board_type!r}")
+    if board_type is not None and board_type not in (recorded_type, metadata.get("board")):
+        raise ValueError(f"{path} comes from board type {recorded_type!r} (board {metadata.get('board')!r}), "
+                         f"not {board_type!r}")
     episode = recording.episodes[0]
     if "raw_current" not in episode.data or not np.all(np.isfinite(episode["raw_current"])):
         raise ValueError(f"{path} has no motor currents (column raw_current): record the experiment on "
