@@ -35,13 +35,19 @@ OBSERVATION_MODES = ("state", "trig")
 sin alpha, dtheta, dalpha]."""
 
 
-def voltage_from_action(action: Any, limit: float) -> float:
+ACTION_SHAPE = (1,)
+"""Shape of an action: one motor voltage (V)."""
+
+
+def voltage_from_action(action: Any, limit: float, allow_number: bool = True) -> float:
     """The motor voltage for `action`: one finite number, clipped to +-`limit` (V).
 
-    Accepts a 1-element array-like or a scalar. Anything else (wrong shape, NaN,
-    inf, non-numeric) raises ValueError.
+    Takes an array-like of shape (1,), or, if `allow_number` (dm_env, where
+    controllers return a float), also a plain number (shape ()). A wrong shape
+    raises ValueError("Action dimension mismatch ...", Gymnasium's wording), as do
+    NaN, inf and non-numbers. See docs/conventions.md.
     """
-    if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
+    if type(action) is np.ndarray and action.shape == ACTION_SHAPE and action.dtype.kind == "f":
         volts = action.item()  # the usual action: checked by the comparison below
         if -limit <= volts <= limit:  # False for NaN
             return volts
@@ -49,10 +55,13 @@ def voltage_from_action(action: Any, limit: float) -> float:
         try:
             action = np.asarray(action)
         except Exception as error:  # ragged sequences and other oddities
-            raise ValueError(f"action must be one number (V), got {action!r}") from error
-        if action.shape not in ((1,), ()) or action.dtype.kind not in "fiu":
-            raise ValueError(f"action must be one number (V) of shape (1,), got {action!r} "
-                             f"with shape {action.shape} and dtype {action.dtype}")
+            raise ValueError(f"Action dimension mismatch: an action is one number (V) of shape (1,), "
+                             f"got {action!r}") from error
+        if action.shape != ACTION_SHAPE and not (allow_number and action.shape == ()):
+            raise ValueError(f"Action dimension mismatch: an action has shape (1,), got shape {action.shape} "
+                             f"({action!r})")
+        if action.dtype.kind not in "fiu":
+            raise ValueError(f"action must be one number (V), got {action!r} with dtype {action.dtype}")
         volts = float(action.item())
     if not math.isfinite(volts):
         raise ValueError(f"action must be finite, got {volts}")
@@ -80,8 +89,8 @@ class QubeTask(base.Task):
         super().__init__(random=random)
         self._voltage_limit = float(voltage_limit)
         self._trig = observation == "trig"
-        self._action_spec = specs.BoundedArray((1,), np.float64, -self._voltage_limit,
-                                               self._voltage_limit, name="voltage")
+        limit = np.full(ACTION_SHAPE, self._voltage_limit)
+        self._action_spec = specs.BoundedArray(ACTION_SHAPE, np.float64, -limit, limit, name="voltage")
         self._layout: list[tuple[str, int]] | None = None
 
     @property
