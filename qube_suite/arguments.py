@@ -3,13 +3,31 @@
 from __future__ import annotations
 
 import inspect
+import numbers
 from collections.abc import Callable, Iterable
+
+import numpy as np
 
 
 class UnknownKeywordError(TypeError, ValueError):
     """An unknown keyword argument: a TypeError, as Python raises for one (clients such as TorchRL's
     `GymEnv` retry without an optional keyword on TypeError), and a ValueError, as qube_suite raises
     for every other bad argument."""
+
+
+def is_number(value) -> bool:
+    """Whether `value` is a real number: int, float or a numpy scalar of either, not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def check_seed(random) -> None:
+    """Raise ValueError unless `random` is None, a non-negative integer or a numpy RandomState."""
+    if random is None or isinstance(random, np.random.RandomState):
+        return
+    if not (isinstance(random, numbers.Integral) and not isinstance(random, (bool, np.bool_))
+            and 0 <= random < 2**32):
+        raise ValueError(f"random must be None, an integer seed in [0, 2**32) or a numpy RandomState, "
+                         f"got {random!r}")
 
 
 def keywords_of(function: Callable, skip: Iterable[str] = ()) -> tuple[str, ...]:

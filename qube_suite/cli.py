@@ -349,8 +349,10 @@ def _eval(args: argparse.Namespace) -> int:
     import json
 
     from qube_suite.evaluation import evaluate
+    from qube_suite.policies import load_policy
 
-    result = evaluate(args.controller, domain=args.domain, task=args.task, episodes=args.episodes,
+    policy = args.controller if args.policy is None else load_policy(args.policy)
+    result = evaluate(policy, domain=args.domain, task=args.task, episodes=args.episodes,
                       seed=args.seed, progress=not args.json)
     summary = result.to_dict()
     if args.json:
@@ -374,9 +376,7 @@ def _add_eval(commands) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     evaluation.add_argument("--domain", default="qube", help="domain name (default: qube)")
     evaluation.add_argument("--task", required=True, help="task name, e.g. swingup")
-    evaluation.add_argument("--controller", required=True,
-                            help="controller name (e.g. balance, mpc), shipped policy (e.g. ppo:balance) "
-                                 "or policy file (.npz)")
+    _add_policy_arguments(evaluation)
     evaluation.add_argument("--episodes", type=int, default=20, help="number of episodes (default: 20)")
     evaluation.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
     evaluation.add_argument("--json", action="store_true", help="print the result as JSON")
@@ -476,7 +476,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.run(args)
     except (ValueError, OSError, ImportError, HardwareError) as error:
-        print(f"qube-suite: error: {error}", file=sys.stderr)
+        print(f"qube-suite: error: {' '.join(str(error).split())}", file=sys.stderr)  # one line
         return 2
     except KeyboardInterrupt:
         print("qube-suite: interrupted", file=sys.stderr)

@@ -11,6 +11,7 @@ from dm_control.rl import control
 from dm_env import specs
 
 from qube_suite import randomization as randomization_
+from qube_suite.arguments import is_number
 
 DEFAULT_CONTROL_FREQUENCY = 250.0
 """Control steps per second (Hz)."""
@@ -24,8 +25,7 @@ def episode_steps(time_limit: float, control_frequency: float) -> int:
 
     Raises ValueError unless `time_limit` is a positive finite number.
     """
-    if not (isinstance(time_limit, (int, float)) and not isinstance(time_limit, bool)
-            and 0.0 < time_limit < math.inf):
+    if not (is_number(time_limit) and 0.0 < time_limit < math.inf):
         raise ValueError(f"time_limit must be a positive number of seconds, got {time_limit!r}")
     return max(1, round(time_limit * control_frequency))
 

@@ -22,7 +22,7 @@ from dm_control.mujoco import wrapper as dm_wrapper
 
 from qube_suite import parameters as params
 from qube_suite.angles import wrap_angle
-from qube_suite.arguments import keywords_of
+from qube_suite.arguments import is_number, keywords_of
 from qube_suite.domains.interface import MeasuredState
 
 MODEL_PATH = pathlib.Path(__file__).resolve().parent.parent / "assets" / "qube.xml"
@@ -499,7 +499,7 @@ DOMAIN_KWARGS = keywords_of(make_physics, skip=("control_frequency",))
 
 def check_control_frequency(control_frequency: float) -> None:
     """Raise ValueError unless `control_frequency` (Hz) is within the supported range."""
-    if not (isinstance(control_frequency, (int, float)) and not isinstance(control_frequency, bool)
+    if not (is_number(control_frequency)
             and MIN_CONTROL_FREQUENCY <= control_frequency <= MAX_CONTROL_FREQUENCY):
         raise ValueError(f"control_frequency must be a number in [{MIN_CONTROL_FREQUENCY:g}, "
                          f"{MAX_CONTROL_FREQUENCY:g}] Hz, got {control_frequency!r}")

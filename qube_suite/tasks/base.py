@@ -18,6 +18,7 @@ import numpy as np
 from dm_control.suite import base
 from dm_env import specs
 
+from qube_suite.arguments import check_seed, is_number
 from qube_suite.tasks.elementwise import cos, sin
 
 DEFAULT_VOLTAGE_LIMIT = 3.0
@@ -81,11 +82,11 @@ class QubeTask(base.Task):
 
     def __init__(self, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT, observation: str = "state",
                  random: int | np.random.RandomState | None = None):
-        if not (isinstance(voltage_limit, (int, float)) and not isinstance(voltage_limit, bool)
-                and 0.0 < voltage_limit <= MAX_VOLTAGE_LIMIT):
+        if not (is_number(voltage_limit) and 0.0 < voltage_limit <= MAX_VOLTAGE_LIMIT):
             raise ValueError(f"voltage_limit must be in (0, {MAX_VOLTAGE_LIMIT:g}] V, got {voltage_limit!r}")
         if observation not in OBSERVATION_MODES:
             raise ValueError(f"observation must be one of {OBSERVATION_MODES}, got {observation!r}")
+        check_seed(random)
         super().__init__(random=random)
         self._voltage_limit = float(voltage_limit)
         self._trig = observation == "trig"
