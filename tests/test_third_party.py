@@ -154,3 +154,19 @@ def test_shimmy_round_trip_including_close(domain):
     if domain == "qube_hardware":
         board = native.physics.qube.board
         assert board.applied_voltage == 0.0 and not board.amplifier_enabled
+
+
+@requires_offscreen_gl
+def test_gymnasium_record_video_writes_an_episode(tmp_path):
+    pytest.importorskip("moviepy")  # in the media extra
+    env = gymnasium.make("QubeSuite/Swingup-v0", render_mode="rgb_array", width=64, height=48,
+                         time_limit=0.012)  # 3 steps: software rendering is slow
+    env = gymnasium.wrappers.RecordVideo(env, str(tmp_path), episode_trigger=lambda episode: True,
+                                         disable_logger=True)
+    env.reset(seed=0)
+    truncated = False
+    while not truncated:
+        truncated = env.step(np.array([1.0], np.float32))[3]
+    env.close()
+    videos = list(tmp_path.glob("*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 500
