@@ -161,12 +161,12 @@ def test_gymnasium_record_video_writes_an_episode(tmp_path):
     pytest.importorskip("moviepy")  # in the media extra
     env = gymnasium.make("QubeSuite/Swingup-v0", render_mode="rgb_array", width=64, height=48,
                          time_limit=0.012)  # 3 steps: software rendering is slow
-    env = gymnasium.wrappers.RecordVideo(env, str(tmp_path), episode_trigger=lambda episode: True,
+    env = gymnasium.wrappers.RecordVideo(env, str(tmp_path / "videos"), episode_trigger=lambda episode: True,
                                          disable_logger=True)
     env.reset(seed=0)
     truncated = False
     while not truncated:
         truncated = env.step(np.array([1.0], np.float32))[3]
     env.close()
-    videos = list(tmp_path.glob("*.mp4"))
+    videos = list((tmp_path / "videos").glob("*.mp4"))
     assert len(videos) == 1 and videos[0].stat().st_size > 500
