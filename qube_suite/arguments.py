@@ -1,9 +1,33 @@
-"""Checking keyword arguments by name, so that a misspelt one is a ValueError listing the valid ones."""
+"""Checking keyword arguments by name, so that a misspelt one is an error listing the valid ones."""
 
 from __future__ import annotations
 
 import inspect
+import numbers
 from collections.abc import Callable, Iterable
+
+import numpy as np
+
+
+class UnknownKeywordError(TypeError, ValueError):
+    """An unknown keyword argument: a TypeError, as Python raises for one (clients such as TorchRL's
+    `GymEnv` retry without an optional keyword on TypeError), and a ValueError, as qube_suite raises
+    for every other bad argument."""
+
+
+def is_number(value) -> bool:
+    """Whether `value` is a real number: int, float or a numpy scalar of either, not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def check_seed(random) -> None:
+    """Raise ValueError unless `random` is None, a non-negative integer or a numpy RandomState."""
+    if random is None or isinstance(random, np.random.RandomState):
+        return
+    if not (isinstance(random, numbers.Integral) and not isinstance(random, (bool, np.bool_))
+            and 0 <= random < 2**32):
+        raise ValueError(f"random must be None, an integer seed in [0, 2**32) or a numpy RandomState, "
+                         f"got {random!r}")
 
 
 def keywords_of(function: Callable, skip: Iterable[str] = ()) -> tuple[str, ...]:
@@ -15,11 +39,15 @@ def keywords_of(function: Callable, skip: Iterable[str] = ()) -> tuple[str, ...]
 
 
 def check_keywords(given: Iterable[str], valid: Iterable[str], what: str) -> None:
-    """Raise ValueError naming the keys of `given` that are not `valid`, and listing the valid ones.
+    """Raise UnknownKeywordError (a TypeError and a ValueError) naming the keys of `given` that are
+    not `valid`, and listing the valid ones.
 
-    `what` names the arguments in the message, e.g. "task_kwargs".
+    `what` names what takes the arguments in the message, e.g. "task_kwargs".
     """
     valid = tuple(valid)
     unknown = sorted(set(given) - set(valid))
     if unknown:
-        raise ValueError(f"unknown {what}: {', '.join(map(repr, unknown))}; valid: {', '.join(valid)}")
+        # Python's wording ("got an unexpected keyword argument 'x'"), which clients match on.
+        names = "an unexpected keyword argument" if len(unknown) == 1 else "unexpected keyword arguments"
+        raise UnknownKeywordError(f"{what} got {names} {', '.join(map(repr, unknown))}; "
+                                  f"valid: {', '.join(valid)}")

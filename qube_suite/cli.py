@@ -14,7 +14,7 @@ import sys
 import time
 from typing import Any
 
-from tqdm import tqdm
+from qube_suite.progress import Progress
 
 DEMO_PLOT = "qube_demo.png"
 """Where `qube-suite demo` writes its plot when matplotlib is installed."""
@@ -85,14 +85,20 @@ class RealtimePacer:
 
 
 class ProgressHook:
-    """A step hook that advances a tqdm bar by one per control step."""
+    """A step hook that advances a `Progress` by one per control step."""
 
-    def __init__(self, bar: tqdm):
-        self.bar = bar
+    def __init__(self, progress: Progress):
+        self.progress = progress
 
     def __call__(self, step: int, environment: Any) -> None:
         if step:
-            self.bar.update()
+            self.progress.update()
+
+
+def _add_quiet(parser: argparse.ArgumentParser) -> None:
+    """`--quiet` for a long command (see `qube_suite.progress` for what it silences)."""
+    parser.add_argument("--quiet", action="store_true",
+                        help="no progress output (otherwise: a bar on a terminal, a line per 10 %% in logs)")
 
 
 def _positive_int(text: str) -> int:
@@ -234,17 +240,17 @@ def _run(args: argparse.Namespace) -> int:
         if args.realtime and args.domain not in REALTIME_DOMAIN_KWARGS:
             hooks.append(RealtimePacer())
         traces = []
-        with tqdm(total=args.episodes * environment.episode_steps, unit="step", disable=None,
-                  desc=f"{name} on {args.domain}/{args.task}") as bar:
+        total = args.episodes * environment.episode_steps
+        with Progress(total, "step", f"{name} on {args.domain}/{args.task}", quiet=args.quiet) as progress:
             for episode in range(args.episodes):
                 seed = args.seed + episode
-                trace = episodes.run_episode(environment, policy, [ProgressHook(bar), *hooks],
+                trace = episodes.run_episode(environment, policy, [ProgressHook(progress), *hooks],
                                              label=f"{name} on {args.domain}/{args.task}, seed {seed}",
                                              seed=seed)
                 traces.append(trace)
-                bar.update((episode + 1) * environment.episode_steps - bar.n)  # an early end skips ahead
+                progress.advance_to((episode + 1) * environment.episode_steps)  # an early end skips ahead
                 end = "terminated" if trace.terminated else "time limit"
-                tqdm.write(f"episode {episode + 1} (seed {seed}): return {trace.episode_return:.1f}, "
+                progress.write(f"episode {episode + 1} (seed {seed}): return {trace.episode_return:.1f}, "
                            f"{trace.steps} steps, {end}")
     finally:
         if recorder is not None:
@@ -289,6 +295,7 @@ def _add_run(commands) -> None:
                      help="keep to the wall clock: sleep in simulation, the substitute board's realtime "
                           "mode on qube_hardware")
     _add_output_arguments(run)
+    _add_quiet(run)
     run.set_defaults(run=_run)
 
 
@@ -308,8 +315,8 @@ def _demo(args: argparse.Namespace) -> int:
     print(f"Swing-up on the simulated Qube-Servo 2 at {environment.control_frequency:g} Hz, "
           f"{environment.task.voltage_limit:g} V limit, energy-shaping controller (seed {args.seed})")
     start = time.perf_counter()
-    with tqdm(total=environment.episode_steps, unit="step", disable=None, desc="swing-up") as bar:
-        trace = episodes.run_episode(environment, controller, [ProgressHook(bar)],
+    with Progress(environment.episode_steps, "step", "swing-up", quiet=args.quiet) as progress:
+        trace = episodes.run_episode(environment, controller, [ProgressHook(progress)],
                                      label=f"energy-shaping swing-up, seed {args.seed}")
     controller.close()
     print(f"return {trace.episode_return:.1f} of {environment.episode_steps} "
@@ -339,6 +346,7 @@ def _add_demo(commands) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     demo.add_argument("--seed", type=int, default=0, help="seed of the start state and the controller")
     demo.add_argument("--plot", metavar="FILE.png", help=f"where to write the plot (default: {DEMO_PLOT})")
+    _add_quiet(demo)
     demo.set_defaults(run=_demo)
 
 
@@ -349,9 +357,11 @@ def _eval(args: argparse.Namespace) -> int:
     import json
 
     from qube_suite.evaluation import evaluate
+    from qube_suite.policies import load_policy
 
-    result = evaluate(args.controller, domain=args.domain, task=args.task, episodes=args.episodes,
-                      seed=args.seed, progress=not args.json)
+    policy = args.controller if args.policy is None else load_policy(args.policy)
+    result = evaluate(policy, domain=args.domain, task=args.task, episodes=args.episodes,
+                      seed=args.seed, progress=not args.quiet)
     summary = result.to_dict()
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -374,12 +384,11 @@ def _add_eval(commands) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     evaluation.add_argument("--domain", default="qube", help="domain name (default: qube)")
     evaluation.add_argument("--task", required=True, help="task name, e.g. swingup")
-    evaluation.add_argument("--controller", required=True,
-                            help="controller name (e.g. balance, mpc), shipped policy (e.g. ppo:balance) "
-                                 "or policy file (.npz)")
+    _add_policy_arguments(evaluation)
     evaluation.add_argument("--episodes", type=int, default=20, help="number of episodes (default: 20)")
     evaluation.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
     evaluation.add_argument("--json", action="store_true", help="print the result as JSON")
+    _add_quiet(evaluation)
     evaluation.set_defaults(run=_eval)
 
 
@@ -406,7 +415,7 @@ def _train(args: argparse.Namespace) -> int:
     result = train(args.task, algo=args.algo, steps=args.steps, seed=args.seed, domain=args.domain,
                    randomization=args.randomization, out=args.out, num_envs=args.num_envs,
                    evaluations=args.evaluations, eval_episodes=args.eval_episodes,
-                   checkpoints=args.checkpoints, init=args.init)
+                   checkpoints=args.checkpoints, init=args.init, progress=not args.quiet)
     print(f"trained {result.steps} steps in {result.wall_time:.0f} s; best evaluation return "
           f"{result.best_mean_return:.1f}; policy {result.policy} (logs in {result.directory})")
     return 0
@@ -441,6 +450,7 @@ def _add_train(commands) -> None:
                           help="start from the model of a previous run (its directory), e.g. balance before "
                                "swingup, swingup before swingup_follow, or to fine-tune with a randomization")
     training.add_argument("--out", default=None, help="run directory (default: runs/ALGO_TASK_SEED)")
+    _add_quiet(training)
     training.set_defaults(run=_train)
 
 
@@ -536,7 +546,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.run(args)
     except (ValueError, OSError, ImportError, HardwareError) as error:
-        print(f"qube-suite: error: {error}", file=sys.stderr)
+        print(f"qube-suite: error: {' '.join(str(error).split())}", file=sys.stderr)  # one line
         return 2
     except KeyboardInterrupt:
         print("qube-suite: interrupted", file=sys.stderr)

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import collections
 import math
 
 import dm_env
+import numpy as np
 from dm_control.rl import control
+from dm_env import specs
 
 from qube_suite import randomization as randomization_
+from qube_suite.arguments import is_number
 
 DEFAULT_CONTROL_FREQUENCY = 250.0
 """Control steps per second (Hz)."""
@@ -21,8 +25,7 @@ def episode_steps(time_limit: float, control_frequency: float) -> int:
 
     Raises ValueError unless `time_limit` is a positive finite number.
     """
-    if not (isinstance(time_limit, (int, float)) and not isinstance(time_limit, bool)
-            and 0.0 < time_limit < math.inf):
+    if not (is_number(time_limit) and 0.0 < time_limit < math.inf):
         raise ValueError(f"time_limit must be a positive number of seconds, got {time_limit!r}")
     return max(1, round(time_limit * control_frequency))
 
@@ -52,6 +55,8 @@ class Environment(control.Environment):
       effects from the task's random state (`randomization_sample`);
     * `reset(seed=s)` reseeds the task's random state first (same seed, same
       episode), as Gymnasium's `reset(seed=...)` does;
+    * after `close()` the next `step` starts a new episode: on hardware that opens the board
+      again; the simulated domain refuses (RuntimeError) and cannot be pickled (TypeError);
     * objects in `observers` are told of every episode start and step (e.g. a
       `qube_suite.recording.Recorder`): `episode_started(environment)` and
       `step_done(environment, action, reward, discount)`, discount None while the
@@ -65,12 +70,17 @@ class Environment(control.Environment):
         time_limit: episode length (s).
         randomization: None, or a preset name, config mapping, YAML file path or
             `qube_suite.randomization.Randomization`.
+        flat_observation: as in dm_control's `control.Environment`: observations are an
+            OrderedDict with the single key "observations", every entry concatenated in order.
     """
 
     def __init__(self, physics, task, control_frequency: float = DEFAULT_CONTROL_FREQUENCY,
-                 time_limit: float = DEFAULT_TIME_LIMIT, randomization=None):
+                 time_limit: float = DEFAULT_TIME_LIMIT, randomization=None, flat_observation: bool = False):
         steps = episode_steps(time_limit, control_frequency)
-        super().__init__(physics, task, control_timestep=1.0 / control_frequency, legacy_step=False)
+        if not isinstance(flat_observation, bool):
+            raise ValueError(f"flat_observation must be True or False, got {flat_observation!r}")
+        super().__init__(physics, task, control_timestep=1.0 / control_frequency, legacy_step=False,
+                         flat_observation=flat_observation)
         self._control_frequency = float(control_frequency)
         self._episode_steps = steps
         self._randomizer = None if randomization is None else randomization_.Randomizer(
@@ -78,7 +88,6 @@ class Environment(control.Environment):
         self._randomization_sample = None
         self._episode_seed: int | None = None
         self.observers: list = []
-
     @property
     def control_frequency(self) -> float:
         """Control steps per second (Hz)."""
@@ -124,7 +133,7 @@ class Environment(control.Environment):
     def reset(self, seed: int | None = None) -> dm_env.TimeStep:
         """Start a new episode and return its first `TimeStep`; `seed` reseeds the task first."""
         self.start_episode(seed)
-        return dm_env.restart(self._task.get_observation(self._physics))
+        return dm_env.restart(self._observation())
 
     def start_episode(self, seed: int | None = None) -> None:
         """Start a new episode without building a `TimeStep`: the core that `reset` and the
@@ -148,7 +157,7 @@ class Environment(control.Environment):
         if self._reset_next_step:
             return self.reset()
         reward, discount = self.advance(action)
-        observation = self._task.get_observation(self._physics)
+        observation = self._observation()
         if discount is None:
             return dm_env.TimeStep(dm_env.StepType.MID, reward, 1.0, observation)
         return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, observation)
@@ -188,6 +197,26 @@ class Environment(control.Environment):
             observer.step_done(self, action, reward, discount)
         return reward, discount
 
+    def observation_spec(self):
+        """The task's observation spec; flattened like the observations with `flat_observation`."""
+        spec = self._task.observation_spec(self._physics)
+        if not self._flat_observation:
+            return spec
+        size = sum(int(np.prod(array.shape)) for array in spec.values())
+        key = control.FLAT_OBSERVATION_KEY
+        return collections.OrderedDict([(key, specs.Array((size,), np.float64, name=key))])
+
+    def _observation(self):
+        observation = self._task.get_observation(self._physics)
+        return control.flatten_observation(observation) if self._flat_observation else observation
+
     def close(self) -> None:
-        """Release the domain: on hardware, stop the motor and close the board."""
+        """Release the domain: on hardware, stop the motor and close the board (a later reset opens
+        it again); a closed simulation cannot be used again."""
+        self._reset_next_step = True
         self._physics.close()
+
+    @property
+    def closed(self) -> bool:
+        """Whether the domain was closed for good (the simulated Qube after `close()`)."""
+        return getattr(self._physics, "closed", False)

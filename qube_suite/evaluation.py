@@ -25,10 +25,10 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from qube_suite import baselines, suite
 from qube_suite.policies import load_policy, names_a_policy, shipped
+from qube_suite.progress import Progress
 
 SETTLED_TIME = 2.0
 """Success looks at the final 2 s of an episode."""
@@ -126,7 +126,8 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
             observation to a voltage (with an optional `reset()` called before each episode).
         domain, task, randomization, task_kwargs, environment_kwargs, domain_kwargs: as
             `suite.load` (e.g. `domain_kwargs={"plant": {...}}` for the hardware substitute).
-        progress: show a progress bar (tqdm, on stderr).
+        progress: show progress on stderr (`qube_suite.progress`: a bar on a terminal,
+            a line per 10 % otherwise).
     """
     if not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes must be a positive integer, got {episodes!r}")
@@ -141,7 +142,7 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
     settled = settled_steps(environment.control_frequency)
     returns, successes, step_times, step_cpu_times = [], [], [], []
     arm_errors = []
-    bar = tqdm(total=episodes, unit="episode", disable=not progress, desc=f"{name} on {domain}/{task}")
+    bar = Progress(episodes, "episode", f"{name} on {domain}/{task}", quiet=not progress)
     try:
         for episode in range(episodes):
             environment.task.random.seed(seed + episode)

@@ -84,6 +84,10 @@ class FrameRenderer:
             self._renderer.close()
         self._renderer, self._model = None, None
 
+    def __getstate__(self) -> dict:
+        """The camera and size; a copy opens its own OpenGL context when it renders."""
+        return {**self.__dict__, "_renderer": None, "_model": None}
+
     def __enter__(self) -> FrameRenderer:
         return self
 

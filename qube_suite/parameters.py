@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import os
 import types
 from collections.abc import Mapping
@@ -97,6 +98,8 @@ def resolve(overrides: dict[str, float] | None = None) -> dict[str, float]:
     for name, value in (overrides or {}).items():
         if name not in PARAMETERS:
             raise ValueError(f"unknown parameter {name!r}; valid names: {', '.join(PARAMETERS)}")
+        if not (isinstance(value, numbers.Real) and not isinstance(value, bool)):
+            raise ValueError(f"parameter {name!r} must be a number, got {value!r}")
         value = float(value)
         if not 0.0 < value < math.inf:  # positive and finite is valid for every parameter
             _check_nonpositive(name, value)

@@ -222,20 +222,35 @@ def load_recording(path: str | os.PathLike) -> Recording:
                          f"{FORMAT!r} header)")
     metadata = values[0]
     episodes: list[RecordedEpisode] = []
-    header, rows, end = None, [], None
+    header, columns, rows, end = None, [], [], None
+
+    def damaged(number: int, what: str) -> ValueError:
+        return ValueError(f"{os.fspath(path)}, line {number}: {what}; the file is damaged")
 
     def finish() -> None:
         if header is not None:
-            data = np.array(rows, dtype=float).reshape(len(rows), len(header["columns"]))
-            episodes.append(RecordedEpisode(header, dict(zip(header["columns"], data.T, strict=True)), end))
+            data = np.array(rows, dtype=float).reshape(len(rows), len(columns))
+            episodes.append(RecordedEpisode(header, dict(zip(columns, data.T, strict=True)), end))
 
-    for value in values[1:]:
+    for number, value in enumerate(values[1:], start=2):
         if isinstance(value, list):
+            if header is None:
+                raise damaged(number, "a row before any episode header")
+            if len(value) != len(columns):
+                raise damaged(number, f"a row of {len(value)} values where the episode has "
+                                      f"{len(columns)} columns")
+            if not all(x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in value):
+                raise damaged(number, "a row with a value that is not a number or null")
             rows.append(value)
-        elif "episode" in value:
+        elif isinstance(value, dict) and isinstance(value.get("episode"), dict):
             finish()
             header, rows, end = value["episode"], [], None
-        elif "end" in value:
+            columns = header.get("columns")
+            if not (isinstance(columns, list) and columns and all(isinstance(c, str) for c in columns)):
+                raise damaged(number, "an episode header without its list of column names")
+        elif isinstance(value, dict) and "end" in value:
             end = value["end"]
+        else:
+            raise damaged(number, f"neither a row, an episode header nor an end record ({str(value)[:60]})")
     finish()
     return Recording(metadata, episodes, truncated)

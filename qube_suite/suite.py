@@ -23,7 +23,7 @@ _DOMAIN_MODULES = {
 """Domain name -> module with `make_physics(control_frequency, **domain_kwargs)` and the tuple
 `DOMAIN_KWARGS` of the keys `domain_kwargs` may hold."""
 
-ENVIRONMENT_KWARGS = ("control_frequency", "time_limit")
+ENVIRONMENT_KWARGS = ("control_frequency", "time_limit", "flat_observation")
 """Keys `environment_kwargs` may hold."""
 
 TASK_KWARGS = keywords_of(QubeTask)
@@ -60,8 +60,9 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
         task_name: one of `TASKS_BY_DOMAIN[domain_name]`.
         task_kwargs: passed to the task: `random` (seed), `voltage_limit` (V),
             `observation` ("state" or "trig").
-        environment_kwargs: `control_frequency` (Hz, default 250) and
-            `time_limit` (s, default 8.192).
+        environment_kwargs: `control_frequency` (Hz, default 250), `time_limit` (s,
+            default 8.192) and `flat_observation` (dm_control's: one concatenated
+            array under the key "observations").
         domain_kwargs: passed to the domain: for "qube", `parameters` (physical
             parameters by long name); for "qube_hardware", `board`, `plant`,
             `realtime`, `max_voltage`, `reset_voltage_limit`, `reset_timeout`,
@@ -71,7 +72,8 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
             a YAML file, or a `qube_suite.randomization.Randomization`; None: off.
 
     Raises:
-        ValueError: unknown names or invalid arguments; the message lists valid values.
+        ValueError: unknown names or invalid arguments; the message lists valid values
+            (an unknown keyword is also a TypeError).
     """
     task = make_task(domain_name, task_name, task_kwargs)
     environment_kwargs = dict(environment_kwargs or {})

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from qube_suite.arguments import check_keywords, keywords_of
+from qube_suite.arguments import check_keywords, is_number, keywords_of
 from qube_suite.baselines.base import Controller, split_observation
 from qube_suite.baselines.dampen import Dampen
 from qube_suite.baselines.follow import Follow
@@ -41,7 +41,7 @@ def make(name: str, **kwargs) -> Controller:
     if "control_frequency" in kwargs:
         check_control_frequency(kwargs["control_frequency"])
     limit = kwargs.get("voltage_limit", 1.0)
-    if isinstance(limit, bool) or not isinstance(limit, (int, float)) or not 0.0 < limit < math.inf:
+    if not (is_number(limit) and 0.0 < limit < math.inf):
         raise ValueError(f"voltage_limit must be a positive number of volts, got {limit!r}")
     return cls(**kwargs)
 

@@ -12,16 +12,18 @@ from __future__ import annotations
 import contextlib
 import math
 import pathlib
+import zlib
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import mujoco
 import numpy as np
 from dm_control import mujoco as dm_mujoco
+from dm_control.mujoco import wrapper as dm_wrapper
 
 from qube_suite import parameters as params
 from qube_suite.angles import wrap_angle
-from qube_suite.arguments import keywords_of
+from qube_suite.arguments import is_number, keywords_of
 from qube_suite.domains.interface import MeasuredState
 
 MODEL_PATH = pathlib.Path(__file__).resolve().parent.parent / "assets" / "qube.xml"
@@ -68,6 +70,7 @@ class Physics(MeasuredState, dm_mujoco.Physics):
     electrical time constant, Lm / Rm = 0.14 ms, is far below the 4 ms timestep."""
 
     _measurement_ready = False
+    _parameters_written = False
 
     # -- construction -------------------------------------------------------------
 
@@ -83,7 +86,7 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         ids = self._ids = ElementIds(model)
         self._arm_qpos, self._pendulum_qpos = ids.arm_qpos, ids.pendulum_qpos
         self._arm_dof, self._pendulum_dof = ids.arm_dof, ids.pendulum_dof
-        self._led_rgba = model.geom_rgba[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "led")]
+        self._led_rgba = model.geom_rgba[ids.led_geom]
         self._led = tuple(float(x) for x in self._led_rgba[:3])
         self._options = model.opt
         if not hasattr(self, "_parameters"):
@@ -95,6 +98,44 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         self._voltage = float(self._ctrl[0])
         self._measurement_ready = True
         self._measure_afresh()
+
+    # -- pickling and copying -------------------------------------------------------
+
+    _REBUILT_ATTRIBUTES = frozenset({
+        "_contexts_lock", "_contexts", "_data", "_warnings", "_warnings_before", "_new_warnings", "_named",
+        "_model_ptr", "_data_ptr", "_qpos", "_qvel", "_ctrl", "_ids", "_arm_qpos", "_pendulum_qpos",
+        "_arm_dof", "_pendulum_dof", "_led_rgba", "_options", "_measurement_ready"})
+    """Attributes that unpickling rebuilds from the model and data; every other attribute (parameters,
+    sensor, actuator and step-duration models, the measurement, the voltage, the LED) is pickled."""
+
+    def __getstate__(self) -> dict:
+        """The model (as its XML and parameters where that rebuilds it exactly, else in full), MuJoCo's
+        integration state and the Python state: a copy continues bit-identically.
+
+        Raises TypeError after `close()`: the data is freed then.
+        """
+        if self.closed:
+            raise TypeError("a closed simulated Qube cannot be pickled or copied: its MuJoCo data was "
+                            "freed by close(); copy the environment before closing it")
+        model, data = self._model_ptr, self._data_ptr
+        recipe = ModelRecipe(MODEL_PATH.read_text(), model.opt.timestep,
+                             self._parameters if self._parameters_written else None,
+                             self._led_rgba.tolist(), self._ids.led_geom)
+        state = {key: value for key, value in self.__dict__.items() if key not in self._REBUILT_ATTRIBUTES}
+        state["model"] = recipe if recipe.rebuilds(model) else model
+        state["integration_state"] = integration_state(model, data)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        state = dict(state)
+        model = state.pop("model")
+        saved = state.pop("integration_state")
+        if isinstance(model, ModelRecipe):
+            model = model.build()
+        data = dm_wrapper.MjData(dm_wrapper.MjModel(model))
+        set_integration_state(model, data.ptr, saved)
+        super().__setstate__(data)  # dm_control: rendering lock, warnings, `_reload_from_data`
+        self.__dict__.update(state)
 
     def copy(self, share_model: bool = False) -> Physics:
         new = super().copy(share_model=share_model)
@@ -117,6 +158,7 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         """
         state = self._exact_state()
         self._parameters = write_parameters(self._model_ptr, self._data_ptr, overrides, self._ids)
+        self._parameters_written = True
         self._set_state(state)
 
     # -- the domain interface -------------------------------------------------------
@@ -190,8 +232,15 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         if hasattr(self, "_data"):
             self.free()
 
+    @property
+    def closed(self) -> bool:
+        """Whether `close()` freed the simulation: resets, rendering and pickling raise then."""
+        return not hasattr(self, "_data")
+
     def render(self, *args, **kwargs):
-        """dm_control's `Physics.render`, showing the current LED colour."""
+        """dm_control's `Physics.render`, showing the current LED colour. RuntimeError after `close()`."""
+        if self.closed:
+            raise RuntimeError("the simulated Qube is closed: nothing to render")
         self.draw_led()
         return super().render(*args, **kwargs)
 
@@ -239,7 +288,9 @@ class Physics(MeasuredState, dm_mujoco.Physics):
     def reset_context(self):
         """dm_control's reset context without its extra passes: time, state and control are reset
         (0 V), the caller sets the start (e.g. `reset_to`), then one `mj_forward` and a fresh
-        measurement."""
+        measurement. RuntimeError after `close()`."""
+        if self.closed:
+            raise RuntimeError("the simulated Qube is closed; make a new environment to run episodes")
         mujoco.mj_resetData(self._model_ptr, self._data_ptr)
         self._restart_actuation()
         self.physics_error = None
@@ -303,6 +354,7 @@ class ElementIds:
         self.motor = find(mujoco.mjtObj.mjOBJ_ACTUATOR, "motor")
         self.arm_geom, self.pendulum_geom = find(geom, "arm"), find(geom, "pendulum")
         self.encoder_geom = find(geom, "pendulum_encoder")
+        self.led_geom = find(geom, "led")
         self.arm_qpos = int(model.jnt_qposadr[self.arm_joint])
         self.pendulum_qpos = int(model.jnt_qposadr[self.pendulum_joint])
         self.arm_dof = int(model.jnt_dofadr[self.arm_joint])
@@ -362,6 +414,57 @@ def write_parameters(model: mujoco.MjModel, data: mujoco.MjData,
     return p
 
 
+class ModelRecipe:
+    """How to rebuild a Qube's compiled model: its XML (stored compressed), timestep (s), physical
+    parameters (None: the XML's, never written) and LED colour; a few kB where the compiled model
+    is 5.5 MB (mostly textures)."""
+
+    def __init__(self, xml: str, timestep: float, parameters: Mapping[str, float] | None,
+                 led_rgba: Sequence[float], led_geom: int):
+        self.xml = zlib.compress(xml.encode(), 9)
+        self.timestep = float(timestep)
+        self.parameters = None if parameters is None else dict(parameters)
+        self.led_rgba, self.led_geom = list(led_rgba), int(led_geom)
+
+    def build(self) -> mujoco.MjModel:
+        """The compiled model."""
+        model = mujoco.MjModel.from_xml_string(zlib.decompress(self.xml).decode())
+        model.opt.timestep = self.timestep
+        if self.parameters is not None:
+            write_parameters(model, mujoco.MjData(model), self.parameters)
+        model.geom_rgba[self.led_geom] = self.led_rgba
+        return model
+
+    def rebuilds(self, model: mujoco.MjModel) -> bool:
+        """Whether `build()` gives exactly `model` (byte for byte): False if anything else in it was
+        changed directly."""
+        return np.array_equal(_model_bytes(self.build()), _model_bytes(model))
+
+
+def _model_bytes(model: mujoco.MjModel) -> np.ndarray:
+    buffer = np.empty(mujoco.mj_sizeModel(model), np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    return buffer
+
+
+INTEGRATION_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+"""The part of MjData a simulation's future depends on (time, positions, velocities, controls, ...)."""
+
+
+def integration_state(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """MuJoCo's integration state of `data`, a float64 array."""
+    state = np.empty(mujoco.mj_stateSize(model, INTEGRATION_STATE))
+    mujoco.mj_getState(model, data, state, INTEGRATION_STATE)
+    return state
+
+
+def set_integration_state(model: mujoco.MjModel, data: mujoco.MjData, state: np.ndarray) -> None:
+    """Put `data` in the integration state `state`, with every derived quantity recomputed."""
+    mujoco.mj_setState(model, data, state, INTEGRATION_STATE)
+    mujoco.mj_forward(model, data)
+    mujoco.mj_setState(model, data, state, INTEGRATION_STATE)  # in case forward touched any of it
+
+
 def substeps_per_control_period(control_frequency: float) -> int:
     """Physics steps per control period so that the timestep is at most MAX_TIMESTEP."""
     return max(1, math.ceil(1.0 / (control_frequency * MAX_TIMESTEP) - 1e-9))
@@ -398,7 +501,7 @@ DOMAIN_KWARGS = keywords_of(make_physics, skip=("control_frequency",))
 
 def check_control_frequency(control_frequency: float) -> None:
     """Raise ValueError unless `control_frequency` (Hz) is within the supported range."""
-    if not (isinstance(control_frequency, (int, float)) and not isinstance(control_frequency, bool)
+    if not (is_number(control_frequency)
             and MIN_CONTROL_FREQUENCY <= control_frequency <= MAX_CONTROL_FREQUENCY):
         raise ValueError(f"control_frequency must be a number in [{MIN_CONTROL_FREQUENCY:g}, "
                          f"{MAX_CONTROL_FREQUENCY:g}] Hz, got {control_frequency!r}")

@@ -325,7 +325,16 @@ DOMAIN_KWARGS = keywords_of(Physics, skip=("control_frequency",))
 
 def make_physics(control_frequency: float = 250.0, **options: Any) -> Physics:
     """A Qube on a board for control at `control_frequency` (Hz); `options`: see `Physics`."""
+    from collections.abc import Mapping
+
+    from qube_suite.arguments import is_number
     from qube_suite.domains.qube import check_control_frequency
 
     check_control_frequency(control_frequency)
+    for key in ("max_voltage", "reset_voltage_limit", "reset_timeout"):
+        if key in options and not (is_number(options[key]) and 0.0 < options[key] < math.inf):
+            raise ValueError(f"{key} must be a positive number, got {options[key]!r}")
+    if options.get("plant") is not None and not isinstance(options["plant"], Mapping):
+        raise ValueError(f"plant must be a mapping of plant parameter names to values, "
+                         f"got {options['plant']!r}")
     return Physics(control_frequency, **options)

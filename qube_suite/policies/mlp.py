@@ -22,8 +22,11 @@ The action is the deterministic one, the mean of the trained Gaussian, clipped t
 from __future__ import annotations
 
 import json
+import math
+import numbers
 import pathlib
 import zipfile
+import zlib
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -49,10 +52,12 @@ class MLPPolicy:
     def __init__(self, weights: Sequence[np.ndarray], biases: Sequence[np.ndarray],
                  observation_mean: np.ndarray, observation_var: np.ndarray, meta: Mapping[str, Any],
                  name: str = "policy"):
-        self.weights = [np.asarray(w, dtype=np.float64) for w in weights]
-        self.biases = [np.asarray(b, dtype=np.float64) for b in biases]
-        self.observation_mean = np.asarray(observation_mean, dtype=np.float64)
-        self.observation_var = np.asarray(observation_var, dtype=np.float64)
+        if not isinstance(meta, Mapping):
+            raise ValueError(f"meta must be a mapping (a JSON object), got {type(meta).__name__}")
+        self.weights = [_real_array(w, f"weight_{i}") for i, w in enumerate(weights)]
+        self.biases = [_real_array(b, f"bias_{i}") for i, b in enumerate(biases)]
+        self.observation_mean = _real_array(observation_mean, "observation_mean")
+        self.observation_var = _real_array(observation_var, "observation_var")
         self.meta = dict(meta)
         self.name = name
         _check(self.weights, self.biases, self.observation_mean, self.observation_var, self.meta)
@@ -118,12 +123,20 @@ def load(path: str | pathlib.Path, name: str | None = None) -> MLPPolicy:
             weights = [arrays[f"weight_{i}"] for i in range(layers)]
             biases = [arrays[f"bias_{i}"] for i in range(layers)]
             mean, var = arrays["observation_mean"], arrays["observation_var"]
-    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as error:
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as error:
         raise ValueError(f"{path} is not a readable policy file ({type(error).__name__}: {error})") from error
     try:
         return MLPPolicy(weights, biases, mean, var, meta, name=name or path.stem)
     except ValueError as error:
         raise ValueError(f"{path} is not a valid policy file: {error}") from error
+
+
+def _real_array(values, name: str) -> np.ndarray:
+    """`values` as float64; ValueError unless they are real numbers (complex, text, objects refused)."""
+    array = np.asarray(values)
+    if array.dtype.kind not in "fiu":
+        raise ValueError(f"{name} must hold real numbers, got dtype {array.dtype}")
+    return array.astype(np.float64)
 
 
 def _check(weights: list[np.ndarray], biases: list[np.ndarray], mean: np.ndarray, var: np.ndarray,
@@ -155,5 +168,11 @@ def _check(weights: list[np.ndarray], biases: list[np.ndarray], mean: np.ndarray
     arrays = [*weights, *biases, mean, var]
     if not all(np.isfinite(a).all() for a in arrays):
         raise ValueError("weights or statistics are not finite")
-    if not (float(meta["voltage_limit"]) > 0 and float(meta["epsilon"]) >= 0 and float(meta["clip"]) > 0):
+    for key in ("voltage_limit", "epsilon", "clip"):
+        value = meta[key]
+        if not (isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)):
+            raise ValueError(f"{key} must be a finite number, got {value!r}")
+    if not (meta["voltage_limit"] > 0 and meta["epsilon"] >= 0 and meta["clip"] > 0):
         raise ValueError("voltage_limit and clip must be positive, epsilon non-negative")
+    if np.any(var + meta["epsilon"] <= 0):
+        raise ValueError("a variance is 0 and epsilon is 0: that feature's normalisation divides by zero")

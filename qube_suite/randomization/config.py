@@ -193,4 +193,8 @@ def _read_yaml(path: pathlib.Path):
 
     Loader.add_implicit_resolver("tag:yaml.org,2002:float", _YAML_FLOAT, list("-+0123456789."))
     with path.open() as file:
-        return yaml.load(file, Loader=Loader)
+        try:
+            return yaml.load(file, Loader=Loader)
+        except yaml.YAMLError as error:  # malformed, or a tag such as !!python/object (safe loading)
+            detail = " ".join(str(error).split())
+            raise ValueError(f"{path} is not a valid randomization YAML file: {detail}") from None

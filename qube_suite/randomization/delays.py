@@ -9,6 +9,12 @@ import numpy as np
 
 from qube_suite.randomization.base import Effect, Field
 
+MAX_DELAY_SECONDS = 1.0
+"""Longest delay (s) a config may give: 100 times the Qube's real loop latency, an eighth of an episode."""
+
+MAX_DELAY_STEPS = 2000
+"""Longest delay in control steps: MAX_DELAY_SECONDS at the highest control frequency (2000 Hz)."""
+
 
 class Delay(Effect):
     """Outputs its input of `steps` control steps before, from a delay line that
@@ -16,8 +22,10 @@ class Delay(Effect):
     whole control periods."""
 
     fields = {
-        "steps": Field("control steps", "delay (default 1 step)", optional=True, minimum=0, integer=True),
-        "seconds": Field("s", "delay, rounded to whole control steps", optional=True, minimum=0.0),
+        "steps": Field("control steps", "delay (default 1 step)", optional=True, minimum=0,
+                       maximum=MAX_DELAY_STEPS, integer=True),
+        "seconds": Field("s", "delay, rounded to whole control steps", optional=True, minimum=0.0,
+                         maximum=MAX_DELAY_SECONDS),
     }
     per_env_settings = ("steps",)
 

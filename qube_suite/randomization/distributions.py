@@ -30,9 +30,14 @@ KINDS: dict[str, tuple[str, str]] = {
 
 def finite_number(value, where: str) -> float:
     """`value` as a float; a ValueError naming `where` unless it is a finite real number."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
-        raise ValueError(f"{where} must be a finite number, got {value!r}")
-    return float(value)
+    try:
+        number = float(value) if isinstance(value, numbers.Real) and not isinstance(value, bool) else math.nan
+    except OverflowError:  # an int beyond a float's range
+        number = math.nan
+    if not math.isfinite(number):
+        shown = f"an integer of {len(str(value))} digits" if isinstance(value, int) else repr(value)
+        raise ValueError(f"{where} must be a finite number, got {shown}")
+    return number
 
 
 def is_list(value, length: int) -> bool:

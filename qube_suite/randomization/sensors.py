@@ -21,7 +21,8 @@ class Quantization(Effect):
     name = "quantization"
     signal = "state"
     fields = {"counts_per_revolution": Field("counts/rev", "encoder counts per revolution",
-                                             default=ENCODER_COUNTS_PER_REVOLUTION, minimum=1, integer=True)}
+                                             default=ENCODER_COUNTS_PER_REVOLUTION, minimum=1,
+                                             maximum=2**32, integer=True)}
     per_env_settings = ("resolution",)
 
     def __init__(self, counts_per_revolution: int | np.ndarray = ENCODER_COUNTS_PER_REVOLUTION):

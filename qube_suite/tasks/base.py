@@ -18,6 +18,7 @@ import numpy as np
 from dm_control.suite import base
 from dm_env import specs
 
+from qube_suite.arguments import check_seed, is_number
 from qube_suite.tasks.elementwise import cos, sin
 
 DEFAULT_VOLTAGE_LIMIT = 3.0
@@ -35,13 +36,19 @@ OBSERVATION_MODES = ("state", "trig")
 sin alpha, dtheta, dalpha]."""
 
 
-def voltage_from_action(action: Any, limit: float) -> float:
+ACTION_SHAPE = (1,)
+"""Shape of an action: one motor voltage (V)."""
+
+
+def voltage_from_action(action: Any, limit: float, allow_number: bool = True) -> float:
     """The motor voltage for `action`: one finite number, clipped to +-`limit` (V).
 
-    Accepts a 1-element array-like or a scalar. Anything else (wrong shape, NaN,
-    inf, non-numeric) raises ValueError.
+    Takes an array-like of shape (1,), or, if `allow_number` (dm_env, where
+    controllers return a float), also a plain number (shape ()). A wrong shape
+    raises ValueError("Action dimension mismatch ...", Gymnasium's wording), as do
+    NaN, inf and non-numbers. See docs/conventions.md.
     """
-    if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
+    if type(action) is np.ndarray and action.shape == ACTION_SHAPE and action.dtype.kind == "f":
         volts = action.item()  # the usual action: checked by the comparison below
         if -limit <= volts <= limit:  # False for NaN
             return volts
@@ -49,10 +56,13 @@ def voltage_from_action(action: Any, limit: float) -> float:
         try:
             action = np.asarray(action)
         except Exception as error:  # ragged sequences and other oddities
-            raise ValueError(f"action must be one number (V), got {action!r}") from error
-        if action.shape not in ((1,), ()) or action.dtype.kind not in "fiu":
-            raise ValueError(f"action must be one number (V) of shape (1,), got {action!r} "
-                             f"with shape {action.shape} and dtype {action.dtype}")
+            raise ValueError(f"Action dimension mismatch: an action is one number (V) of shape (1,), "
+                             f"got {action!r}") from error
+        if action.shape != ACTION_SHAPE and not (allow_number and action.shape == ()):
+            raise ValueError(f"Action dimension mismatch: an action has shape (1,), got shape {action.shape} "
+                             f"({action!r})")
+        if action.dtype.kind not in "fiu":
+            raise ValueError(f"action must be one number (V), got {action!r} with dtype {action.dtype}")
         volts = float(action.item())
     if not math.isfinite(volts):
         raise ValueError(f"action must be finite, got {volts}")
@@ -72,16 +82,16 @@ class QubeTask(base.Task):
 
     def __init__(self, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT, observation: str = "state",
                  random: int | np.random.RandomState | None = None):
-        if not (isinstance(voltage_limit, (int, float)) and not isinstance(voltage_limit, bool)
-                and 0.0 < voltage_limit <= MAX_VOLTAGE_LIMIT):
+        if not (is_number(voltage_limit) and 0.0 < voltage_limit <= MAX_VOLTAGE_LIMIT):
             raise ValueError(f"voltage_limit must be in (0, {MAX_VOLTAGE_LIMIT:g}] V, got {voltage_limit!r}")
         if observation not in OBSERVATION_MODES:
             raise ValueError(f"observation must be one of {OBSERVATION_MODES}, got {observation!r}")
+        check_seed(random)
         super().__init__(random=random)
         self._voltage_limit = float(voltage_limit)
         self._trig = observation == "trig"
-        self._action_spec = specs.BoundedArray((1,), np.float64, -self._voltage_limit,
-                                               self._voltage_limit, name="voltage")
+        limit = np.full(ACTION_SHAPE, self._voltage_limit)
+        self._action_spec = specs.BoundedArray(ACTION_SHAPE, np.float64, -limit, limit, name="voltage")
         self._layout: list[tuple[str, int]] | None = None
 
     @property

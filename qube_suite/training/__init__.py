@@ -76,7 +76,7 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         evaluations, eval_episodes: evaluate the deterministic policy this many times
             during training, over this many episodes each.
         checkpoints: save the model this many times during training.
-        progress: show a progress bar (tqdm).
+        progress: show progress on stderr (a bar on a terminal, a line per 10 % otherwise).
         hyperparameters: overrides of `HYPERPARAMETERS[algo]`.
         init: directory of a previous run of `algo` on a task with the same
             observation layout, or the same without the follow target; training

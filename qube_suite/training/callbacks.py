@@ -5,25 +5,27 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
-from tqdm import tqdm
+
+from qube_suite.progress import Progress
 
 
 class ProgressBar(BaseCallback):
-    """A tqdm bar of environment steps, showing the latest evaluation's mean return."""
+    """Progress in environment steps (`qube_suite.progress`: a bar on a terminal, a line per 10 %
+    otherwise), showing the latest evaluation's mean return."""
 
     def __init__(self, total_steps: int, evaluation: EvalCallback | None = None):
         super().__init__()
         self._total = total_steps
         self._evaluation = evaluation
-        self._bar: tqdm | None = None
+        self._bar: Progress | None = None
 
     def _on_training_start(self) -> None:
-        self._bar = tqdm(total=self._total, unit="step", unit_scale=True, dynamic_ncols=True)
+        self._bar = Progress(self._total, "step", "training")
 
     def _on_step(self) -> bool:
-        self._bar.update(self.num_timesteps - self._bar.n)
         if self._evaluation is not None and self._evaluation.evaluations_results:
-            self._bar.set_postfix(eval_return=f"{self._evaluation.last_mean_reward:.0f}", refresh=False)
+            self._bar.set_postfix(eval_return=f"{self._evaluation.last_mean_reward:.0f}")
+        self._bar.advance_to(self.num_timesteps)
         return True
 
     def _on_training_end(self) -> None:

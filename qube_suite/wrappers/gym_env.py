@@ -12,6 +12,7 @@ from gymnasium import spaces
 
 from qube_suite.environment import Environment
 from qube_suite.media import DEFAULT_CAMERA, FrameRenderer
+from qube_suite.tasks.base import ACTION_SHAPE, voltage_from_action
 
 RENDER_MODES = ("human", "rgb_array")
 
@@ -44,8 +45,9 @@ class QubeEnv(gymnasium.Env):
 
     ## Spaces
     Action: Box(-voltage_limit, voltage_limit, (1,), float32), the motor voltage
-    (V); values beyond the limit are clipped, NaN/inf or a wrong shape raise
-    ValueError and leave the environment unchanged.
+    (V); values beyond the limit are clipped, NaN/inf or a shape other than (1,)
+    (a plain number too) raise ValueError ("Action dimension mismatch" for a
+    shape) and leave the environment unchanged (docs/conventions.md).
     Observation: Box of float32, the dm_env observation flattened in key order:
     [theta, alpha, dtheta, dalpha] (+ [theta_target] in follow tasks); angles in
     (-pi, pi], alpha = 0 upright. With `observation="trig"`: [cos theta, sin theta,
@@ -130,8 +132,12 @@ class QubeEnv(gymnasium.Env):
     def step(self, action):
         environment = self.environment
         if environment.needs_reset:
+            if environment.closed:
+                raise RuntimeError("the environment is closed; make a new one to run episodes")
             raise RuntimeError("no episode is running (never reset, or the last one ended); "
                                "call reset() before step()")
+        if not (type(action) is np.ndarray and action.shape == ACTION_SHAPE):
+            voltage_from_action(action, self._task.voltage_limit, allow_number=False)  # Gymnasium: shape (1,)
         reward, discount = environment.advance(action)
         terminated = discount == 0.0
         truncated = discount == 1.0
@@ -143,6 +149,8 @@ class QubeEnv(gymnasium.Env):
         return self._observation(), reward, terminated, truncated, info
 
     def render(self):
+        if self.environment.closed:
+            raise RuntimeError("the environment is closed: nothing to render")
         if self.render_mode == "rgb_array":
             return self._frames.render(self.physics)
         if self.render_mode == "human":
@@ -163,6 +171,12 @@ class QubeEnv(gymnasium.Env):
         if not self._closed:
             self._closed = True
             self.environment.close()
+
+    def __getstate__(self) -> dict:
+        """Everything but the open viewer (a copy opens its own when it renders)."""
+        state = dict(self.__dict__)
+        state["_viewer"] = None
+        return state
 
     def _observation(self) -> np.ndarray:
         return np.array(self._task.observation_values(self._physics), dtype=np.float32)

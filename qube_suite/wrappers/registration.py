@@ -41,7 +41,7 @@ def make_env(task: str, domain: str = "qube", render_mode: str | None = None, ra
 
     `kwargs` go to the environment (`control_frequency`, `time_limit`) or the task
     (`voltage_limit`, `observation`, `random`); `domain_kwargs` as in `suite.load`. An
-    unknown keyword is a ValueError listing the valid ones.
+    unknown keyword is a TypeError (and a ValueError) listing the valid ones.
     """
     valid = keywords_of(make_env, skip=("task", "domain")) + suite.ENVIRONMENT_KWARGS + suite.TASK_KWARGS
     check_keywords(kwargs, valid, f"keyword arguments for {gymnasium_id(task, domain)}")

@@ -252,9 +252,11 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
             actions = np.asarray(actions)
         except Exception as error:  # ragged sequences and other oddities
             raise ValueError(f"actions must be {self.num_envs} numbers (V), got {actions!r}") from error
-        if actions.shape not in ((self.num_envs, 1), (self.num_envs,)) or actions.dtype.kind not in "fiu":
-            raise ValueError(f"actions must be numbers (V) of shape ({self.num_envs}, 1), got shape "
-                             f"{actions.shape} and dtype {actions.dtype}")
+        if actions.shape != (self.num_envs, 1):
+            raise ValueError(f"Action dimension mismatch: actions have shape ({self.num_envs}, 1), got shape "
+                             f"{actions.shape}")
+        if actions.dtype.kind not in "fiu":
+            raise ValueError(f"actions must be numbers (V), got dtype {actions.dtype}")
         volts = actions.reshape(self.num_envs).astype(np.float64)
         if not np.isfinite(volts).all():
             raise ValueError(f"actions must be finite, got {actions.reshape(-1)[~np.isfinite(volts)][:5]}")
