@@ -426,7 +426,7 @@ def _add_train(commands) -> None:
                           help="environment steps (default: 2000000)")
     training.add_argument("--seed", type=int, default=0, help="seed (default: 0)")
     training.add_argument("--randomization", default=None,
-                          help="preset (mild, moderate, sim2real) or YAML file (default: none)")
+                          help="preset (mild, moderate, sim2real, wide) or YAML file (default: none)")
     training.add_argument("--domain", choices=("qube", "qube_hardware"), default="qube",
                           help="domain to train on (default: qube)")
     training.add_argument("--num-envs", type=_positive_int, default=None,
