@@ -406,7 +406,8 @@ def _train(args: argparse.Namespace) -> int:
     result = train(args.task, algo=args.algo, steps=args.steps, seed=args.seed, domain=args.domain,
                    randomization=args.randomization, out=args.out, num_envs=args.num_envs,
                    evaluations=args.evaluations, eval_episodes=args.eval_episodes,
-                   checkpoints=args.checkpoints, init=args.init)
+                   checkpoints=args.checkpoints, init=args.init,
+                   hyperparameters=None if args.history is None else {"history": args.history})
     print(f"trained {result.steps} steps in {result.wall_time:.0f} s; best evaluation return "
           f"{result.best_mean_return:.1f}; policy {result.policy} (logs in {result.directory})")
     return 0
@@ -439,7 +440,10 @@ def _add_train(commands) -> None:
                           help="checkpoints saved (default: 10)")
     training.add_argument("--init", default=None,
                           help="start from the model of a previous run (its directory), e.g. balance before "
-                               "swingup, swingup before swingup_follow, or to fine-tune with a randomization")
+                               "swingup, swingup before swingup_follow, or to fine-tune with a "
+                               "randomization; or from the actor of a PPO policy file or shipped policy")
+    training.add_argument("--history", type=int, default=None, metavar="K",
+                          help="the policy also sees its last K observations and voltages (default: 0)")
     training.add_argument("--out", default=None, help="run directory (default: runs/ALGO_TASK_SEED)")
     training.set_defaults(run=_train)
 
