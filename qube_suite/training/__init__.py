@@ -65,7 +65,7 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
           domain: str = "qube", out: str | pathlib.Path | None = None, num_envs: int | None = None,
           domain_kwargs: dict[str, Any] | None = None, evaluations: int = 20, eval_episodes: int = 8,
           checkpoints: int = 10, progress: bool = True, hyperparameters: dict[str, Any] | None = None,
-          init: str | pathlib.Path | None = None) -> TrainingResult:
+          init: str | pathlib.Path | None = None, exploring_starts: float | None = None) -> TrainingResult:
     """Train `algo` ("ppo" or "sac") on `task` for `steps` environment steps and export the policy.
 
     PPO rounds `steps` up to whole rollouts (n_steps x num_envs).
@@ -87,6 +87,8 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
             (the network's shape is that run's; every other hyperparameter is this
             run's). Or a PPO policy file or shipped policy name: its actor and
             normalisation, with a fresh value network (`warm_start.from_policy`).
+        exploring_starts: fraction of training episodes that start anywhere, in
+            simulation (default: the task's, `EXPLORING_STARTS`).
     """
     if algo not in HYPERPARAMETERS:
         raise ValueError(f"unknown algorithm {algo!r}; valid: {', '.join(HYPERPARAMETERS)}")
@@ -96,6 +98,8 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         raise ValueError(f"steps must be a positive integer, got {steps!r}")
     if randomization is not None:
         randomization_configs.load(randomization)  # a bad config fails here, before any environment
+    if exploring_starts is not None and not 0.0 <= exploring_starts <= 1.0:
+        raise ValueError(f"exploring_starts must be a fraction in [0, 1], got {exploring_starts!r}")
     if init is not None and not pathlib.Path(init).is_dir() and policies.names_a_policy(init):
         init = policies.load_policy(init)
     elif init is not None:
@@ -106,11 +110,11 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
     require_rl()
     return _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
                   eval_episodes, checkpoints, progress, {**HYPERPARAMETERS[algo], **(hyperparameters or {})},
-                  init)
+                  init, exploring_starts)
 
 
 def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
-           eval_episodes, checkpoints, progress, hyperparameters, init) -> TrainingResult:
+           eval_episodes, checkpoints, progress, hyperparameters, init, exploring_starts) -> TrainingResult:
     import stable_baselines3
     import torch
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
@@ -132,7 +136,9 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     if algo == "ppo":  # minibatches no larger than a rollout
         settings["batch_size"] = min(settings["batch_size"], settings["n_steps"] * num_envs)
     env_kwargs = {"domain": domain, "randomization": randomization, "domain_kwargs": domain_kwargs}
-    starts = EXPLORING_STARTS.get(task, 0.0) if domain == "qube" else 0.0
+    if exploring_starts is None:
+        exploring_starts = EXPLORING_STARTS.get(task, 0.0)
+    starts = exploring_starts if domain == "qube" else 0.0
     venv = make_vec_env(task, num_envs, seed, exploring_starts=starts, history=history, **env_kwargs)
     if init is None:
         venv = VecNormalize(venv, gamma=settings["gamma"], norm_reward=algo == "ppo")
