@@ -32,6 +32,17 @@ def require_ray() -> None:
         raise ImportError(f"running a grid needs ray[tune]: {INSTALL_HINT}")
 
 
+def _script_modules(function: Callable) -> list:
+    """The module of `function` and its sibling modules, if it is a script or test module (not in a
+    package), which Ray workers could not import by name."""
+    module = sys.modules.get(function.__module__)
+    if module is None or "." in module.__name__ or not getattr(module, "__file__", None):
+        return []
+    directory = pathlib.Path(module.__file__).resolve().parent
+    return [m for name, m in list(sys.modules.items()) if "." not in name and getattr(m, "__file__", None)
+            and pathlib.Path(m.__file__).resolve().parent == directory]
+
+
 def run_grid(function: Callable[[dict[str, Any]], Any], jobs: list[dict[str, Any]],
              address: str | None = None, cpus_per_trial: float = 1.0, cpus: int | None = None,
              name: str = "grid", storage: str | pathlib.Path | None = None) -> list[Any]:
@@ -54,9 +65,8 @@ def run_grid(function: Callable[[dict[str, Any]], Any], jobs: list[dict[str, Any
 
     if not jobs:
         return []
-    module = sys.modules.get(function.__module__)
-    if module is not None and "." not in module.__name__:  # a script or test module: workers cannot
-        ray.cloudpickle.register_pickle_by_value(module)   # import it, so it travels with the function
+    for module in _script_modules(function):  # workers cannot import these: they travel by value
+        ray.cloudpickle.register_pickle_by_value(module)
     started_here = not ray.is_initialized()
     if started_here:
         ray.init(address=address, num_cpus=None if address else (cpus or os.cpu_count()),
