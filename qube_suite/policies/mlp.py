@@ -184,7 +184,7 @@ def _check(weights: list[np.ndarray], biases: list[np.ndarray], mean: np.ndarray
     inputs = input_size(features, history)
     if mean.shape != (inputs,) or var.shape != (inputs,) or np.any(var < 0):
         raise ValueError(f"normalisation statistics must be {inputs} values (variances >= 0) for "
-                         f"{features} features and a history of {history}, got {mean.shape[0]}")
+                         f"{features} features and a history of {history}, got {mean.size}")
     for i, (weight, bias) in enumerate(zip(weights, biases, strict=True)):
         if weight.ndim != 2 or weight.shape[1] != inputs or bias.shape != (weight.shape[0],):
             layout = f" ({features} features, history {history})" if i == 0 else ""
