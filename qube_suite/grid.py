@@ -7,8 +7,8 @@ Each job is a JSON-ready dict; `function(job)` runs in a Ray worker and returns 
 JSON-ready result; `run_grid` returns the results in the jobs' order. Ray runs
 the trials on this machine's cores by default (one core per trial), or on a Ray
 cluster given its `address` ("auto" for the cluster this process runs in, or
-"ray://head:10001"). Ray Tune schedules, retries and records the trials
-(`storage`: where its records go). Needs the optional `grid` extra (`ray[tune]`),
+"ray://head:10001"). Ray Tune schedules and records the trials (`storage`:
+where its records go). Needs the optional `grid` extra (`ray[tune]`),
 imported only here.
 """
 
