@@ -5,6 +5,7 @@ import dataclasses
 import importlib.util
 import json
 
+import numpy as np
 import pytest
 
 from qube_suite import cli, training
@@ -95,3 +96,23 @@ def test_a_tiny_recipe_runs_stage_by_stage_and_resumes(tmp_path, capsys):
     assert "stage 1/2 first: finished" in capsys.readouterr().out
     assert (tmp_path / "first" / "training.json").stat().st_mtime_ns == first_record  # not rerun
     assert (tmp_path / "second" / "training.json").is_file()
+
+
+@needs_rl
+def test_an_interrupted_run_resumes_from_its_latest_checkpoint(tmp_path):
+    kwargs = {"num_envs": 2, "evaluations": 2, "eval_episodes": 1, "checkpoints": 2, "progress": False,
+              "hyperparameters": {"n_steps": 256}}
+    training.train("balance", steps=2048, out=tmp_path, **kwargs)
+    checkpoints = tmp_path / "checkpoints"
+    assert sorted(p.name for p in checkpoints.glob("*.zip")) == ["ppo_1024_steps.zip", "ppo_2048_steps.zip"]
+    for name in ("ppo_2048_steps.zip", "ppo_vecnormalize_2048_steps.pkl", "training.json", "model.zip"):
+        (checkpoints / name if "steps" in name else tmp_path / name).unlink()  # interrupted after 1024
+    with np.load(tmp_path / "evaluations.npz") as evaluations:
+        first = {key: evaluations[key][:1] for key in evaluations.files}
+    np.savez(tmp_path / "evaluations.npz", **first)
+    result = training.train("balance", steps=2048, out=tmp_path, resume=True, **kwargs)
+    record = json.loads((tmp_path / "training.json").read_text())
+    assert result.steps == 2048 and record["resumed_from_steps"] == 1024
+    assert list(np.load(tmp_path / "evaluations.npz")["timesteps"]) == [1024, 2048]  # the first one kept
+    fresh = training.train("balance", steps=512, out=tmp_path / "fresh", resume=True, **kwargs)
+    assert fresh.steps == 512  # nothing to resume: a new run

@@ -65,7 +65,8 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
           domain: str = "qube", out: str | pathlib.Path | None = None, num_envs: int | None = None,
           domain_kwargs: dict[str, Any] | None = None, evaluations: int = 20, eval_episodes: int = 8,
           checkpoints: int = 10, progress: bool = True, hyperparameters: dict[str, Any] | None = None,
-          init: str | pathlib.Path | None = None, exploring_starts: float | None = None) -> TrainingResult:
+          init: str | pathlib.Path | None = None, exploring_starts: float | None = None,
+          resume: bool = False) -> TrainingResult:
     """Train `algo` ("ppo" or "sac") on `task` for `steps` environment steps and export the policy.
 
     PPO rounds `steps` up to whole rollouts (n_steps x num_envs).
@@ -89,6 +90,9 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
             normalisation, with a fresh value network (`warm_start.from_policy`).
         exploring_starts: fraction of training episodes that start anywhere, in
             simulation (default: the task's, `EXPLORING_STARTS`).
+        resume: if `out` holds checkpoints of an interrupted run (with these
+            settings), continue from the latest one to `steps` in all, its
+            evaluations kept; otherwise start as usual.
     """
     if algo not in HYPERPARAMETERS:
         raise ValueError(f"unknown algorithm {algo!r}; valid: {', '.join(HYPERPARAMETERS)}")
@@ -110,11 +114,12 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
     require_rl()
     return _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
                   eval_episodes, checkpoints, progress, {**HYPERPARAMETERS[algo], **(hyperparameters or {})},
-                  init, exploring_starts)
+                  init, exploring_starts, resume)
 
 
 def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
-           eval_episodes, checkpoints, progress, hyperparameters, init, exploring_starts) -> TrainingResult:
+           eval_episodes, checkpoints, progress, hyperparameters, init, exploring_starts,
+           resume) -> TrainingResult:
     import stable_baselines3
     import torch
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
@@ -140,7 +145,10 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
         exploring_starts = EXPLORING_STARTS.get(task, 0.0)
     starts = exploring_starts if domain == "qube" else 0.0
     venv = make_vec_env(task, num_envs, seed, exploring_starts=starts, history=history, **env_kwargs)
-    if init is None:
+    checkpoint = warm_start.latest_checkpoint(out / "checkpoints", algo) if resume else None
+    if checkpoint is not None:
+        venv = warm_start.load_checkpoint_normalization(checkpoint, venv)
+    elif init is None:
         venv = VecNormalize(venv, gamma=settings["gamma"], norm_reward=algo == "ppo")
     elif isinstance(init, pathlib.Path):
         venv = warm_start.load_normalization(init, venv, settings["gamma"], history)
@@ -153,18 +161,22 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     policy_kwargs["activation_fn"] = activations[policy_kwargs["activation_fn"]]
     algorithm = getattr(stable_baselines3, algo.upper())
     frozen = []
-    if init is None:
+    if checkpoint is not None:
+        model = warm_start.load_checkpoint_model(algorithm, checkpoint, venv, seed, settings)
+    elif init is None:
         model = algorithm("MlpPolicy", venv, seed=seed, device="cpu", policy_kwargs=policy_kwargs, **settings)
     elif isinstance(init, pathlib.Path):
         model = warm_start.load_model(algorithm, init, venv, seed, settings)
     else:
         model, venv = warm_start.from_policy(algorithm, init, venv, seed, settings, policy_kwargs, history)
+    if init is not None and not isinstance(init, pathlib.Path):
         frozen = [FrozenUntil(warm_start.actor_parameters(model), warm_start.VALUE_WARMUP_STEPS)]
+    resumed = int(model.num_timesteps) if checkpoint is not None else 0
     model.set_logger(configure(str(out), ["csv", "tensorboard"]))
     source = None if init is None else str(init) if isinstance(init, pathlib.Path) else init.name
     record = {"algo": algo, "task": task, "domain": domain, "randomization": _describe(randomization),
               "domain_kwargs": domain_kwargs, "seed": seed, "num_envs": num_envs,
-              "init": source, "exploring_starts": starts,
+              "init": source, "exploring_starts": starts, "resumed_from_steps": resumed,
               "hyperparameters": hyperparameters, "stable_baselines3": stable_baselines3.__version__}
     start = time.perf_counter()
 
@@ -185,11 +197,14 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     evaluation = EvalCallback(eval_venv, n_eval_episodes=eval_episodes, eval_freq=every(evaluations),
                               deterministic=True, log_path=str(out), verbose=0,
                               callback_on_new_best=OnNewBest(lambda: export_to(out / "best_policy.npz")))
+    if resumed:
+        warm_start.continue_evaluations(evaluation, out / "evaluations.npz")
     checkpointing = CheckpointCallback(every(checkpoints), str(out / "checkpoints"), name_prefix=algo,
                                        save_vecnormalize=True)
     callbacks = [*frozen, checkpointing, evaluation] + ([ProgressBar(total, evaluation)] if progress else [])
     try:
-        model.learn(total_timesteps=total, callback=CallbackList(callbacks))
+        model.learn(total_timesteps=max(total - resumed, 1), callback=CallbackList(callbacks),
+                    reset_num_timesteps=not resumed)
         wall_time = time.perf_counter() - start
         model.save(out / "model.zip")
         venv.save(str(out / "vecnormalize.pkl"))

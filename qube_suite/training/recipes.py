@@ -10,8 +10,9 @@ seed and hyperparameters; its result is one policy file of its last stage
 (`keep`: the final `policy.npz`, or `best_policy.npz`, the best periodic
 evaluation's). `qube-suite train --task T` with no single-run option runs the
 recipe named T; `qube-suite train --list-recipes` lists them. A stage whose
-directory holds a finished run (`training.json`) is not run again, so an
-interrupted recipe resumes at the stage it was in (that stage starts afresh).
+directory holds a finished run (`training.json`) is not run again, and an
+interrupted stage continues from its latest checkpoint (`train(resume=True)`),
+so an interrupted recipe resumes where it was, to within a checkpoint.
 
 Expected wall times are those of the runs that made the shipped policies on a
 2-core machine shared with other work (PPO, 64 vector worlds); an idle machine is
@@ -137,7 +138,8 @@ def finished(directory: pathlib.Path) -> bool:
 def run(recipe: str | Recipe, out: str | pathlib.Path | None = None, progress: bool = True,
         **train_kwargs: Any) -> pathlib.Path:
     """Run `recipe` (a name of `RECIPES` or a `Recipe`) into `out` (default `runs/<name>`), one
-    subdirectory per stage, skipping stages already finished there; return the kept policy file.
+    subdirectory per stage, skipping stages already finished there and continuing an interrupted
+    stage from its latest checkpoint; return the kept policy file.
 
     `train_kwargs` go to every stage's `train` (e.g. `evaluations`, `num_envs`).
     """
@@ -159,7 +161,7 @@ def run(recipe: str | Recipe, out: str | pathlib.Path | None = None, progress: b
         train(stage.task, steps=stage.steps, seed=stage.seed, randomization=stage.randomization,
               out=directory, init=None if stage.init is None else root / stage.init,
               exploring_starts=stage.exploring_starts, hyperparameters=dict(stage.hyperparameters),
-              progress=progress, **train_kwargs)
+              progress=progress, resume=True, **train_kwargs)
     return root / recipe.stages[-1].name / recipe.stages[-1].keep
 
 

@@ -14,6 +14,9 @@ actor and normalisation are copied, the value network starts afresh and learns
 alone, the actor frozen, for the first `VALUE_WARMUP_STEPS`, so that the first
 updates do not follow a value function that knows nothing. Imports
 stable-baselines3 and torch.
+
+An interrupted run continues from its latest checkpoint (`latest_checkpoint`,
+`train(resume=True)`): model, normalisation, step count and evaluations.
 """
 
 from __future__ import annotations
@@ -164,3 +167,46 @@ def actor_parameters(model) -> list:
     """The parameters of a PPO model's actor (its MLP, action head and exploration noise)."""
     policy = model.policy
     return [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters(), policy.log_std]
+
+
+def latest_checkpoint(directory: pathlib.Path, algo: str) -> Checkpoint | None:
+    """The (model, normalisation) files of the latest checkpoint in `directory` that has both, or None."""
+    found = []
+    for model in directory.glob(f"{algo}_*_steps.zip"):
+        steps = model.stem.split("_")[-2]
+        statistics = directory / f"{algo}_vecnormalize_{steps}_steps.pkl"
+        if steps.isdigit() and statistics.is_file():
+            found.append((int(steps), model, statistics))
+    return max(found)[1:] if found else None
+
+
+Checkpoint = tuple[pathlib.Path, pathlib.Path]
+"""A checkpoint of an interrupted run: its model file and its normalisation statistics file."""
+
+
+def load_checkpoint_normalization(checkpoint: Checkpoint, venv: VecEnv) -> VecNormalize:
+    """`venv` normalised with a checkpoint's statistics, in training mode."""
+    normalized = VecNormalize.load(str(checkpoint[1]), venv)
+    normalized.training = True
+    return normalized
+
+
+def load_checkpoint_model(algorithm, checkpoint: Checkpoint, venv: VecEnv, seed: int,
+                          settings: dict[str, Any]):
+    """The model of a checkpoint, to go on training on `venv` with `settings`, its step count kept."""
+    model = algorithm.load(checkpoint[0], env=venv, device="cpu", custom_objects=settings)
+    model.set_random_seed(seed + model.num_timesteps)  # not the first session's noise again
+    return model
+
+
+def continue_evaluations(evaluation, path: pathlib.Path) -> None:
+    """Let an `EvalCallback` extend the evaluations an interrupted run left in `path`, and beat their
+    best."""
+    if not path.is_file():
+        return
+    with np.load(path) as previous:
+        evaluation.evaluations_timesteps = list(previous["timesteps"])
+        evaluation.evaluations_results = [list(r) for r in previous["results"]]
+        evaluation.evaluations_length = [list(n) for n in previous["ep_lengths"]]
+    if evaluation.evaluations_results:
+        evaluation.best_mean_reward = float(max(np.mean(r) for r in evaluation.evaluations_results))
