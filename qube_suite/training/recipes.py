@@ -99,9 +99,9 @@ RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
                      Stage("rotor", "rotor", 1_500_000, 3, init="spin", keep="best_policy.npz")),
            "ppo:rotor: 60 revolutions in simulation, 17 on the substitute, 100 % success"),
     Recipe("swingup_adaptive", (*_swingup_chain(), Stage(
-        "swingup_adaptive", "swingup", 8_000_000, 15, init="swingup", randomization="wide", seed=2,
+        "swingup_adaptive", "swingup", 8_000_000, 10, init="swingup", randomization="wide", seed=2,
         hyperparameters={"history": 8})),
-        "swing-up on plants from the held-out ranges (benchmarks/held_out.py)"),
+        "swing-up on held-out plants (benchmarks/held_out.py): 20 % so far, not yet the 90 % aimed at"),
 )}
 """Recipe name -> recipe; every shipped policy `ppo:<name>` has the recipe `<name>`."""
 
