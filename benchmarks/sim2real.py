@@ -4,22 +4,30 @@ simulator detail matters.
 Starts from one PPO swing-up run on the nominal simulation (`base`: `--base DIR`,
 or trained here as the shipped policy is, balance then swing-up from it), then
 continues it for `--steps` more on the nominal simulation and, from the same
-start, under each randomization preset (mild, moderate, sim2real) and under one
+start, under each randomization preset (mild, moderate, sim2real, wide), under
+`wide` with an observation history of 8 steps (adaptive), and under one
 accuracy option or effect at a time (ablations: Coulomb friction on both joints
 and the cable's spring, both at the sim2real preset's ranges; one control step of
 action delay; Quanser's 50 rad/s velocity filter; 2048-count encoders). Every run
-has the same budget and the same start. Runs already in `--runs` are reused.
+has the same budget and the same start; `--seeds N` trains each N times (seeds
+0 to N-1). Runs already in `--runs` are reused.
 Then scores each run's final policy over seeded episodes on the hardware substitute
 (`qube_hardware`, whose plant the policies never saw) and on held-out variations
 of that plant (`domain_kwargs={"plant": ...}`; in every hardware episode the
 plant's friction and cable spring are drawn within +-50 % of the condition's),
-and the four main runs on the nominal simulation too. Reports mean return with a 95 % bootstrap interval,
+the main runs also on the nominal simulation and on `--held-out` plants drawn
+from the held-out ranges (`benchmarks/held_out.py`). Reports mean return with a 95 % bootstrap interval,
 success (no termination, the pendulum within 10 degrees of upright for the final
 2 s) with a 95 % Wilson interval, and each run's training steps and wall time;
 writes the table as JSON beside the runs and the plot to docs/sim2real.png.
 
-    python benchmarks/sim2real.py [--base DIR] [--steps 2000000] [--episodes 20]
-                                  [--runs runs/sim2real] [--jobs 2] [--main-only]
+Every training run and every (run, condition) score is a Ray Tune trial
+(`qube_suite.grid`, the `grid` extra): on this machine's cores (`--jobs` at a
+time) by default, on a Ray cluster with `--address`.
+
+    python benchmarks/sim2real.py [--base DIR] [--steps 2000000] [--episodes 20] [--seeds 1]
+                                  [--held-out 10] [--runs runs/sim2real] [--jobs 2]
+                                  [--address ray://head:10001] [--main-only]
 """
 
 from __future__ import annotations
@@ -27,13 +35,14 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import multiprocessing
 import pathlib
 import shutil
 
+import held_out
 import numpy as np
 
 from qube_suite import evaluate
+from qube_suite.grid import run_grid
 from qube_suite.hardware.plant import plant_parameters
 from qube_suite.policies import load_policy
 from qube_suite.randomization.presets import PRESETS
@@ -43,7 +52,8 @@ _SIM2REAL = PRESETS["sim2real"]["parameters"]
 _FRICTION = {name: _SIM2REAL[name] for name in ("arm_friction", "pendulum_friction")}
 
 TRAINING: dict[str, object] = {
-    "nominal": None, "mild": "mild", "moderate": "moderate", "sim2real": "sim2real",
+    "nominal": None, "mild": "mild", "moderate": "moderate", "sim2real": "sim2real", "wide": "wide",
+    "adaptive": "wide",
     "action delay only": {"effects": {"action_delay": {"steps": 1}}},
     "velocity filter only": {"effects": {"velocity_filter": {"cutoff": 50.0}}},
     "quantization only": {"effects": {"quantization": {"counts_per_revolution": 2048}}},
@@ -51,7 +61,9 @@ TRAINING: dict[str, object] = {
     "cable spring only": {"parameters": {"cable_stiffness": _SIM2REAL["cable_stiffness"]}},
 }
 """Training run name -> randomization."""
-MAIN = ("nominal", "mild", "moderate", "sim2real")
+HISTORY = {"adaptive": 8}
+"""Training run name -> observation history (steps) of its policy; the others have none."""
+MAIN = ("nominal", "mild", "moderate", "sim2real", "wide", "adaptive")
 """Runs scored on every condition; the others (ablations) on the hardware substitute only."""
 
 _PLANT = plant_parameters()
@@ -113,36 +125,54 @@ def train_base(runs: pathlib.Path, seed: int) -> None:
         previous = directory
 
 
-def train_one(job: tuple[str, str, int, int]) -> None:
-    """Continue the base run `job[1]` under `TRAINING[job[0]]` for `job[2]` steps (seed `job[3]`)."""
+def run_directory(runs: pathlib.Path, name: str, seed: int) -> pathlib.Path:
+    """Where the run `name` (a key of `TRAINING`) with training seed `seed` lives."""
+    return runs / (name.replace(" ", "_") + ("" if seed == 0 else f"_seed{seed}"))
+
+
+def train_one(job: dict) -> None:
+    """Continue the base run `job["base"]` under `TRAINING[job["name"]]` for `job["steps"]` steps
+    (seed `job["seed"]`) into `job["out"]`."""
     from qube_suite.training import train
 
-    name, base, steps, seed = job
-    print(f"training {name} ({steps} steps from the base)", flush=True)
-    train("swingup", steps=steps, seed=seed, randomization=TRAINING[name], init=base, progress=False,
-          out=pathlib.Path(base).parent / name.replace(" ", "_"))
+    print(f"training {job['name']}, seed {job['seed']} ({job['steps']} steps from the base)", flush=True)
+    train("swingup", steps=job["steps"], seed=job["seed"], randomization=TRAINING[job["name"]],
+          init=job["base"], progress=False, out=job["out"],
+          hyperparameters={"history": HISTORY.get(job["name"], 0)})
 
 
-def train_missing(runs: pathlib.Path, base: pathlib.Path | None, steps: int, seed: int, jobs: int,
-                  names: tuple[str, ...]) -> None:
-    """Every run of `names` (keys of `TRAINING`) that has no policy in `runs` yet, `jobs` at a time,
-    from `base` (copied into `runs/base`) or from a base trained here."""
+def train_missing(runs: pathlib.Path, base: pathlib.Path | None, steps: int, seeds: int,
+                  names: tuple[str, ...], grid: dict) -> None:
+    """Every run of `names` (keys of `TRAINING`) and seeds 0 to `seeds - 1` that has no policy in
+    `runs` yet, as grid trials (`grid`: `run_grid`'s options), from `base` (copied into `runs/base`)
+    or from a base trained here (seed 0)."""
     if not (runs / "base" / "model.zip").exists():
         if base is None:
-            train_base(runs, seed)
+            train_base(runs, 0)
         else:
             shutil.copytree(base, runs / "base", dirs_exist_ok=True)
     base = runs / "base"
-    todo = [(name, str(base), steps, seed) for name in names
-            if not (runs / name.replace(" ", "_") / POLICY).exists()]
-    with multiprocessing.get_context("spawn").Pool(jobs) as pool:
-        pool.map(train_one, todo, chunksize=1)
+    todo = [{"name": name, "seed": seed, "steps": steps, "base": str(base),
+             "out": str(run_directory(runs, name, seed))} for name in names for seed in range(seeds)
+            if not (run_directory(runs, name, seed) / POLICY).exists()]
+    run_grid(train_one, todo, name="sim2real_training", **grid)
 
 
-def episode_plant(condition: str, seed: int) -> dict[str, float]:
+HELD_OUT_SEED = 2026
+"""Seed of the held-out plant draws (`held_out.draw_plants`)."""
+
+
+def held_out_conditions(count: int) -> dict[str, dict[str, float]]:
+    """Condition name -> plant, for `count` plants drawn from the held-out ranges."""
+    return {f"held-out {i}": plant for i, plant in enumerate(held_out.draw_plants(count, HELD_OUT_SEED))}
+
+
+def episode_plant(condition: str, seed: int, held_out_count: int = 0) -> dict[str, float]:
     """The substitute's plant for one episode of a hardware `condition`: the condition's overrides,
     with the unmodelled terms (`UNMODELLED`) drawn within +-`PLANT_SPREAD` of their values, seeded
-    by the episode's `seed`."""
+    by the episode's `seed`; a held-out plant's within `held_out.EPISODE_SPREAD`."""
+    if condition.startswith("held-out"):
+        return held_out.episode_plant(held_out_conditions(held_out_count)[condition], seed)
     plant = dict(CONDITIONS[condition][1] or {})
     random = np.random.default_rng(seed)
     for name in UNMODELLED:
@@ -150,21 +180,24 @@ def episode_plant(condition: str, seed: int) -> dict[str, float]:
     return plant
 
 
-def score(job: tuple[str, str, str, int, int]) -> dict:
-    """Evaluate one (run, policy file, condition) over `episodes` episodes from `seed`, each on a
-    fresh Qube (see `benchmarks/policies.py`), each hardware episode on its own `episode_plant`."""
-    run, path, condition, episodes, seed = job
-    domain = CONDITIONS[condition][0]
+def score(job: dict) -> dict:
+    """Evaluate one (run, training seed, policy file, condition) over `episodes` episodes from `seed`,
+    each on a fresh Qube (see `benchmarks/policies.py`), each hardware episode on its own
+    `episode_plant`."""
+    run, path, condition = job["run"], job["path"], job["condition"]
+    episodes, seed = job["episodes"], job["seed"]
+    domain = CONDITIONS[condition][0] if condition in CONDITIONS else "qube_hardware"
     policy = load_policy(path)
     results = [evaluate(policy, domain=domain, task="swingup", episodes=1, seed=seed + episode,
                         domain_kwargs=None if domain == "qube" else
-                        {"plant": episode_plant(condition, seed + episode)})
+                        {"plant": episode_plant(condition, seed + episode, job["held_out"])})
                for episode in range(episodes)]
     returns = [result.returns[0] for result in results]
     successes = sum(result.successes[0] for result in results)
     low, high = bootstrap_interval(returns)
     success_low, success_high = wilson_interval(successes, episodes)
-    return {"run": run, "condition": condition, "mean_return": float(np.mean(returns)),
+    return {"run": run, "training_seed": job["training_seed"], "condition": condition,
+            "mean_return": float(np.mean(returns)),
             "return_ci": [low, high], "success_rate": successes / episodes,
             "success_ci": [success_low, success_high], "returns": returns}
 
@@ -211,44 +244,54 @@ def main() -> None:
                         "(default: train one as the shipped policy is)")
     parser.add_argument("--steps", type=int, default=2_000_000, help="training steps of each run")
     parser.add_argument("--episodes", type=int, default=20)
-    parser.add_argument("--seed", type=int, default=0, help="training seed and first evaluation seed")
+    parser.add_argument("--seed", type=int, default=0, help="first evaluation seed")
+    parser.add_argument("--seeds", type=int, default=1, help="training seeds per run (0 to N-1)")
+    parser.add_argument("--held-out", type=int, default=10, help="held-out plants of the main runs")
     parser.add_argument("--runs", default="runs/sim2real", help="directory of the training runs")
-    parser.add_argument("--jobs", type=int, default=2, help="trainings and evaluations run in parallel")
+    parser.add_argument("--jobs", type=int, default=2, help="cores of this machine for the trials (one each)")
+    parser.add_argument("--address", default=None, help="run the trials on this Ray cluster instead")
     parser.add_argument("--no-train", action="store_true", help="only score the runs already present")
     parser.add_argument("--plot", type=pathlib.Path, default=DOCS / "sim2real.png", help="plot file")
     parser.add_argument("--main-only", action="store_true",
                         help="only the nominal run and the presets, without the ablations")
     args = parser.parse_args()
-    runs = pathlib.Path(args.runs)
+    runs = pathlib.Path(args.runs).resolve()  # trials run in other directories
     names = MAIN if args.main_only else tuple(TRAINING)
+    grid = {"address": args.address, "cpus": args.jobs, "storage": runs / "ray"}
     if not args.no_train:
-        train_missing(runs, args.base, args.steps, args.seed, args.jobs, names)
+        train_missing(runs, args.base, args.steps, args.seeds, names, grid)
+    conditions = (*CONDITIONS, *held_out_conditions(args.held_out))
     jobs = []
     for name in names:
-        path = runs / name.replace(" ", "_") / POLICY
-        if path.exists():
-            for condition in CONDITIONS if name in MAIN else ("hardware",):
-                jobs.append((name, str(path), condition, args.episodes, args.seed))
-    with multiprocessing.Pool(args.jobs) as pool:
-        rows = pool.map(score, jobs)
+        for training_seed in range(args.seeds):
+            path = run_directory(runs, name, training_seed) / POLICY
+            if path.exists():
+                for condition in conditions if name in MAIN else ("hardware",):
+                    jobs.append({"run": name, "training_seed": training_seed, "path": str(path),
+                                 "condition": condition, "episodes": args.episodes, "seed": args.seed,
+                                 "held_out": args.held_out})
+    rows = run_grid(score, jobs, name="sim2real_scores", **grid)
     costs = {}
     for name in ("base", *TRAINING):
-        record = runs / name.replace(" ", "_") / "training.json"
-        if record.exists():
-            data = json.loads(record.read_text())
-            costs[name] = {"steps": data["steps"], "wall_time_s": data["wall_time_s"]}
-    print("| trained with | evaluated on | return (95 % CI) | success (95 % CI) |")
-    print("|---|---|---|---|")
+        for training_seed in range(args.seeds):
+            record = run_directory(runs, name, training_seed) / "training.json"
+            if record.exists():
+                data = json.loads(record.read_text())
+                costs[f"{name}, seed {training_seed}"] = {"steps": data["steps"],
+                                                          "wall_time_s": data["wall_time_s"]}
+    print("| trained with | seed | evaluated on | return (95 % CI) | success (95 % CI) |")
+    print("|---|---|---|---|---|")
     for row in rows:
         low, high = row["return_ci"]
         success_low, success_high = row["success_ci"]
-        print(f"| {row['run']} | {row['condition']} | {row['mean_return']:.0f} ({low:.0f}–{high:.0f}) | "
-              f"{100 * row['success_rate']:.0f} % ({100 * success_low:.0f}–{100 * success_high:.0f} %) |")
+        print(f"| {row['run']} | {row['training_seed']} | {row['condition']} | {row['mean_return']:.0f} "
+              f"({low:.0f}–{high:.0f}) | {100 * row['success_rate']:.0f} % "
+              f"({100 * success_low:.0f}–{100 * success_high:.0f} %) |")
     print("\n| run | training steps | wall time |\n|---|---|---|")
     for name, cost in costs.items():
         print(f"| {name} | {cost['steps'] / 1e6:.2f} M | {cost['wall_time_s'] / 60:.0f} min |")
     (runs / "sim2real.json").write_text(json.dumps({"rows": rows, "training": costs}, indent=2))
-    plot(rows, args.plot)
+    plot([row for row in rows if row["training_seed"] == 0 and row["condition"] in CONDITIONS], args.plot)
 
 
 if __name__ == "__main__":

@@ -409,13 +409,33 @@ def _add_bench(commands) -> None:
     bench.set_defaults(run=_bench)
 
 
-def _train(args: argparse.Namespace) -> int:
-    from qube_suite.training import train
+SINGLE_RUN_OPTIONS = ("algo", "steps", "seed", "randomization", "domain", "num_envs", "init", "history")
+"""`train` options that make one training run instead of the task's recipe."""
 
-    result = train(args.task, algo=args.algo, steps=args.steps, seed=args.seed, domain=args.domain,
+
+def _train(args: argparse.Namespace) -> int:
+    from qube_suite.training import recipes, train
+
+    if args.list_recipes:
+        print(recipes.listing())
+        return 0
+    single = [name for name in SINGLE_RUN_OPTIONS if getattr(args, name) is not None]
+    recipe = args.recipe or (args.task if args.task in recipes.RECIPES and not single else None)
+    if args.recipe and single:
+        raise ValueError(f"--recipe runs the recipe's own stages; drop --{single[0].replace('_', '-')}")
+    if recipe is None and args.task is None:
+        raise ValueError("give --task (and options of one run), --recipe or --list-recipes")
+    if recipe is not None:
+        policy = recipes.run(recipe, out=args.out, progress=not args.quiet, evaluations=args.evaluations,
+                             eval_episodes=args.eval_episodes, checkpoints=args.checkpoints)
+        print(f"recipe {recipe} done; policy {policy}")
+        return 0
+    result = train(args.task, algo=args.algo or "ppo", steps=args.steps or 2_000_000, seed=args.seed or 0,
+                   domain=args.domain or "qube",
                    randomization=args.randomization, out=args.out, num_envs=args.num_envs,
                    evaluations=args.evaluations, eval_episodes=args.eval_episodes,
-                   checkpoints=args.checkpoints, init=args.init, progress=not args.quiet)
+                   checkpoints=args.checkpoints, init=args.init, progress=not args.quiet,
+                   hyperparameters=None if args.history is None else {"history": args.history})
     print(f"trained {result.steps} steps in {result.wall_time:.0f} s; best evaluation return "
           f"{result.best_mean_return:.1f}; policy {result.policy} (logs in {result.directory})")
     return 0
@@ -426,17 +446,23 @@ def _add_train(commands) -> None:
         "train", help="train a policy with stable-baselines3 (needs the 'rl' extra)",
         description="Train PPO or SAC on a task; write checkpoints, evaluations, CSV and TensorBoard logs "
                     "and the policy as a numpy file that 'eval --controller FILE.npz' runs.",
-        epilog="examples:\n  qube-suite train --task balance --steps 500000 --out runs/balance\n"
+        epilog="examples:\n  qube-suite train --task swingup                 (its recipe: every stage)\n"
+               "  qube-suite train --list-recipes\n"
+               "  qube-suite train --task balance --steps 500000 --out runs/balance\n"
                "  qube-suite train --task swingup --steps 3000000 --randomization sim2real",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    training.add_argument("--task", required=True, help="task name, e.g. swingup")
-    training.add_argument("--algo", choices=("ppo", "sac"), default="ppo", help="algorithm (default: ppo)")
-    training.add_argument("--steps", type=_positive_int, default=2_000_000,
+    training.add_argument("--task", default=None, help="task name, e.g. swingup; alone, it runs the task's "
+                          "recipe (--list-recipes), with any option of one run (--steps, ...) one run")
+    training.add_argument("--recipe", default=None, help="run this recipe (see --list-recipes)")
+    training.add_argument("--list-recipes", action="store_true",
+                          help="list the recipes: stages, steps, expected wall time, target")
+    training.add_argument("--algo", choices=("ppo", "sac"), default=None, help="algorithm (default: ppo)")
+    training.add_argument("--steps", type=_positive_int, default=None,
                           help="environment steps (default: 2000000)")
-    training.add_argument("--seed", type=int, default=0, help="seed (default: 0)")
+    training.add_argument("--seed", type=int, default=None, help="seed (default: 0)")
     training.add_argument("--randomization", default=None,
-                          help="preset (mild, moderate, sim2real) or YAML file (default: none)")
-    training.add_argument("--domain", choices=("qube", "qube_hardware"), default="qube",
+                          help="preset (mild, moderate, sim2real, wide) or YAML file (default: none)")
+    training.add_argument("--domain", choices=("qube", "qube_hardware"), default=None,
                           help="domain to train on (default: qube)")
     training.add_argument("--num-envs", type=_positive_int, default=None,
                           help="environments stepped together (default: 64 for ppo, 4 for sac)")
@@ -448,8 +474,12 @@ def _add_train(commands) -> None:
                           help="checkpoints saved (default: 10)")
     training.add_argument("--init", default=None,
                           help="start from the model of a previous run (its directory), e.g. balance before "
-                               "swingup, swingup before swingup_follow, or to fine-tune with a randomization")
-    training.add_argument("--out", default=None, help="run directory (default: runs/ALGO_TASK_SEED)")
+                               "swingup, swingup before swingup_follow, or to fine-tune with a "
+                               "randomization; or from the actor of a PPO policy file or shipped policy")
+    training.add_argument("--history", type=int, default=None, metavar="K",
+                          help="the policy also sees its last K observations and voltages (default: 0)")
+    training.add_argument("--out", default=None, help="run directory (default: runs/ALGO_TASK_SEED; of a "
+                          "recipe: runs/RECIPE, a subdirectory per stage)")
     _add_quiet(training)
     training.set_defaults(run=_train)
 

@@ -70,7 +70,7 @@ def test_effect_defaults():
     ({"parameters": {"arm_mass": uniform(0.9, 1.1, scale=2)}},
      r"unknown key 'scale' for a uniform distribution; valid keys: distribution, low, high, clip, relative"),
     ({"parameters": {"arm_mass": {"distribution": "normal", "mean": 1.0}}}, r"needs 'mean' and 'std'"),
-    ("milder", r"unknown randomization preset 'milder'; valid presets: none, mild, moderate, sim2real"),
+    ("milder", r"unknown randomization preset 'milder'; valid presets: none, mild, moderate, sim2real, wide"),
     (42, r"randomization must be a preset name"),
     # impossible ranges
     ({"parameters": {"arm_mass": uniform(1.1, 0.9)}}, r"arm_mass: low \(1.1\) must not exceed high \(0.9\)"),

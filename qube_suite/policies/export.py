@@ -11,12 +11,13 @@ from qube_suite.policies.mlp import FORMAT, MLPPolicy
 
 def from_sb3(model: Any, observation_mean: np.ndarray, observation_var: np.ndarray, *, epsilon: float,
              clip: float, feature_map: str, observation_size: int, voltage_limit: float, task: str,
-             training: dict[str, Any], name: str = "policy") -> MLPPolicy:
+             training: dict[str, Any], history: int = 0, name: str = "policy") -> MLPPolicy:
     """The deterministic actor of a PPO or SAC `model` (an MLP policy) as an `MLPPolicy`.
 
     `observation_mean`, `observation_var`, `epsilon`, `clip`: the feature
-    normalisation of training (VecNormalize's); `training`: a JSON-ready record
-    kept in the file.
+    normalisation of training (VecNormalize's); `history`: past steps the network
+    sees (`qube_suite.policies.history`); `training`: a JSON-ready record kept in
+    the file.
     """
     from torch import nn
 
@@ -37,8 +38,8 @@ def from_sb3(model: Any, observation_mean: np.ndarray, observation_var: np.ndarr
         raise ValueError("the action space must be symmetric, +-voltage_limit")
     meta = {"format": FORMAT, "feature_map": feature_map, "activation": names[activations.pop()]
             if activations else "tanh", "squash": squash, "epsilon": float(epsilon), "clip": float(clip),
-            "voltage_limit": float(voltage_limit), "observation_size": int(observation_size), "task": task,
-            "algo": type(model).__name__.lower(), "training": training}
+            "voltage_limit": float(voltage_limit), "observation_size": int(observation_size),
+            "history": int(history), "task": task, "algo": type(model).__name__.lower(), "training": training}
     weights = [layer.weight.detach().cpu().numpy() for layer in layers]
     biases = [layer.bias.detach().cpu().numpy() for layer in layers]
     return MLPPolicy(weights, biases, observation_mean, observation_var, meta, name=name)

@@ -9,11 +9,17 @@ one JSON record, nothing pickled:
 - `observation_mean`, `observation_var`: the running statistics of the features
   during training; features are normalised as (f - mean) / sqrt(var + epsilon)
   and clipped to +-clip;
-- `meta`: JSON with `format` (1), `feature_map` (`qube_suite.policies.features`),
+- `meta`: JSON with `format` (2), `feature_map` (`qube_suite.policies.features`),
   `activation` ("tanh" or "relu"), `squash` (SAC: the output goes through tanh
   and is scaled from [-1, 1] to [-voltage_limit, voltage_limit]; PPO: the output
   is the voltage), `epsilon`, `clip`, `voltage_limit` (V), `observation_size`
-  (4, or 5 with a target), `task`, `algo`, and the record of its training.
+  (4, or 5 with a target), `history` (the number k of past observations and
+  voltages the network also sees, 0 for none: `qube_suite.policies.history`),
+  `task`, `algo`, and the record of its training.
+
+Format 1 is format 2 without `history` (no history); this module reads both and
+refuses other formats, and files whose layers do not fit their features and
+history, with a `ValueError` naming the mismatch.
 
 The action is the deterministic one, the mean of the trained Gaussian, clipped to
 +-voltage_limit.
@@ -34,8 +40,10 @@ import numpy as np
 
 from qube_suite.baselines.base import split_observation
 from qube_suite.policies.features import FEATURE_MAPS
+from qube_suite.policies.history import History, input_size
 
-FORMAT = 1
+FORMAT = 2
+READABLE_FORMATS = (1, 2)
 ACTIVATIONS = {"tanh": np.tanh, "relu": lambda x: np.maximum(x, 0.0)}
 REQUIRED_META = ("format", "feature_map", "activation", "squash", "epsilon", "clip", "voltage_limit",
                  "observation_size", "task", "algo")
@@ -46,7 +54,8 @@ class MLPPolicy:
 
     Takes any Qube observation of its task (a dm_env mapping or a flat Gymnasium
     vector, plain or trig layout) and returns the motor voltage (V), within
-    +-`voltage_limit`. It keeps no memory between steps; `reset` does nothing.
+    +-`voltage_limit`. A policy with `history` > 0 remembers its last observations
+    and voltages: call `reset` before each episode; others keep no memory.
     """
 
     def __init__(self, weights: Sequence[np.ndarray], biases: Sequence[np.ndarray],
@@ -68,14 +77,24 @@ class MLPPolicy:
         self._scale = 1.0 / np.sqrt(self.observation_var + float(self.meta["epsilon"]))
         self._clip = float(self.meta["clip"])
         self._size = int(self.meta["observation_size"])
+        self.history = int(self.meta.get("history", 0))
+        self._memory: History | None = None
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
 
     def reset(self) -> None:
-        """Nothing to forget: the policy has no memory."""
+        """Forget the history: the next call starts an episode."""
+        self._memory, self._last = None, None
 
     def actions(self, observations: np.ndarray) -> np.ndarray:
-        """Voltages (V), shape (n,), for standard observations of shape (n, 4) or (n, 5)."""
-        features = (self._features(observations) - self.observation_mean) * self._scale
-        x = np.clip(features, -self._clip, self._clip)
+        """Voltages (V), shape (n,), for standard observations of shape (n, 4) or (n, 5) of n worlds.
+
+        With `history`, successive calls are successive steps of the same n worlds
+        (since the last `reset`, or since a call with a different n).
+        """
+        features = self._features(observations)
+        if self.history:
+            features = self._remember(features)
+        x = np.clip((features - self.observation_mean) * self._scale, -self._clip, self._clip)
         last = len(self.weights) - 1
         for i, (weight, bias) in enumerate(zip(self.weights, self.biases, strict=True)):
             x = x @ weight.T + bias
@@ -84,7 +103,20 @@ class MLPPolicy:
         volts = x[:, 0]
         if self.meta["squash"]:
             volts = np.tanh(volts) * self.voltage_limit
-        return np.clip(volts, -self.voltage_limit, self.voltage_limit)
+        volts = np.clip(volts, -self.voltage_limit, self.voltage_limit)
+        if self.history:
+            self._last = (self._last[0], volts)
+        return volts
+
+    def _remember(self, features: np.ndarray) -> np.ndarray:
+        """The inputs with history for `features`, after recording the previous step."""
+        if self._memory is None or len(self._memory.voltages) != len(features):
+            self._memory = History(self.history, len(features), features.shape[1])
+            self._memory.start(features)
+        else:
+            self._memory.push(*self._last)
+        self._last = (features, None)
+        return self._memory.inputs(features)
 
     def __call__(self, observation: Any) -> float:
         """Motor voltage (V) for one observation of the policy's task."""
@@ -145,8 +177,14 @@ def _check(weights: list[np.ndarray], biases: list[np.ndarray], mean: np.ndarray
     missing = [key for key in REQUIRED_META if key not in meta]
     if missing:
         raise ValueError(f"meta lacks {', '.join(missing)}")
-    if meta["format"] != FORMAT:
-        raise ValueError(f"format {meta['format']!r}, this qube_suite reads format {FORMAT}")
+    if meta["format"] not in READABLE_FORMATS:
+        raise ValueError(f"format {meta['format']!r}; this qube_suite reads formats "
+                         f"{', '.join(map(str, READABLE_FORMATS))} (a newer qube_suite wrote it?)")
+    history = meta.get("history", 0)
+    if meta["format"] == 1 and "history" in meta:
+        raise ValueError("format 1 has no history; a policy with history is format 2")
+    if not (isinstance(history, int) and history >= 0):
+        raise ValueError(f"history must be an integer >= 0, got {history!r}")
     if meta["feature_map"] not in FEATURE_MAPS:
         raise ValueError(f"unknown feature map {meta['feature_map']!r}; known: {', '.join(FEATURE_MAPS)}")
     if meta["activation"] not in ACTIVATIONS:
@@ -155,13 +193,16 @@ def _check(weights: list[np.ndarray], biases: list[np.ndarray], mean: np.ndarray
         raise ValueError(f"observation_size must be 4 or 5, got {meta['observation_size']!r}")
     if not weights or len(weights) != len(biases):
         raise ValueError("no layers, or weights and biases that do not pair up")
-    inputs = FEATURE_MAPS[meta["feature_map"]](np.zeros((1, meta["observation_size"]))).shape[1]
+    features = FEATURE_MAPS[meta["feature_map"]](np.zeros((1, meta["observation_size"]))).shape[1]
+    inputs = input_size(features, history)
     if mean.shape != (inputs,) or var.shape != (inputs,) or np.any(var < 0):
-        raise ValueError(f"normalisation statistics must be {inputs} values (variances >= 0)")
+        raise ValueError(f"normalisation statistics must be {inputs} values (variances >= 0) for "
+                         f"{features} features and a history of {history}, got {mean.size}")
     for i, (weight, bias) in enumerate(zip(weights, biases, strict=True)):
         if weight.ndim != 2 or weight.shape[1] != inputs or bias.shape != (weight.shape[0],):
+            layout = f" ({features} features, history {history})" if i == 0 else ""
             raise ValueError(f"layer {i}: weight {weight.shape} and bias {bias.shape} do not fit "
-                             f"{inputs} inputs")
+                             f"{inputs} inputs{layout}")
         inputs = weight.shape[0]
     if inputs != 1:
         raise ValueError(f"the last layer gives {inputs} outputs, not one voltage")

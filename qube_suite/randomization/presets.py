@@ -13,6 +13,13 @@
   amplifier's limits are left out: within the tasks' voltage limits (3 V by
   default, at most 10 V) they act rarely if ever (+-15 V range, 1.8 A current
   limit against 3 V / 8.4 ohm = 0.36 A at stall).
+- `wide`: `sim2real`'s effects, and parameter ranges that cover a Qube nobody
+  has described: pendulum mass +-30 %, pendulum length +-10 %, motor resistance
+  +-25 %, torque and back-EMF constants +-15 %, rotor inertia +-30 %, Coulomb
+  friction 0 to 4e-3 N m on the arm and 0 to 2e-4 N m on the pendulum (four
+  times the substitute's plant), cable stiffness 0 to 4e-3 N m/rad; arm mass
+  and length and both dampings as in `sim2real`. For policies trained once for
+  many plants (with observation history: `qube_suite.training`).
 
 Friction and spring torques compare with the motor's kt / Rm = 0.005 N m per volt:
 1e-3 N m is the torque of 0.2 V.
@@ -75,6 +82,22 @@ PRESETS: dict[str, dict[str, Any]] = {
             "arm_damping": _log_scale(0.3, 3.0), "pendulum_damping": _log_scale(0.3, 3.0),
             "arm_friction": _absolute(0.0, 2e-3), "pendulum_friction": _absolute(0.0, 1e-4),
             "cable_stiffness": _absolute(0.0, 2e-3),
+        },
+        "effects": {
+            "quantization": {"counts_per_revolution": 2048},
+            "velocity_filter": {"cutoff": 50.0},
+            "action_delay": {"steps": {"distribution": "uniform", "low": 0, "high": 1}},
+        },
+    },
+    "wide": {
+        "parameters": {
+            "pendulum_mass": _scale(0.7, 1.3), "pendulum_length": _scale(0.9, 1.1),
+            "arm_mass": _TOLERANCE, "arm_length": _TOLERANCE,
+            "motor_resistance": _scale(0.75, 1.25), "motor_torque_constant": _scale(0.85, 1.15),
+            "motor_back_emf": _scale(0.85, 1.15), "rotor_inertia": _scale(0.7, 1.3),
+            "arm_damping": _log_scale(0.3, 3.0), "pendulum_damping": _log_scale(0.3, 3.0),
+            "arm_friction": _absolute(0.0, 4e-3), "pendulum_friction": _absolute(0.0, 2e-4),
+            "cable_stiffness": _absolute(0.0, 4e-3),
         },
         "effects": {
             "quantization": {"counts_per_revolution": 2048},

@@ -13,7 +13,10 @@ TensorBoard event files (`tensorboard --logdir DIR`), `evaluations.npz`,
 `training.json` (settings, steps and wall time). `init=DIR` continues from the
 model and normalisation statistics a previous run left in DIR, for a curriculum
 (balance, then swing-up; swing-up, then swing-up with a moving target: see
-`warm_start`) or to fine-tune with a randomization.
+`warm_start`) or to fine-tune with a randomization; `init` may also name a PPO
+policy file or a shipped policy ("ppo:swingup"), whose actor the run starts from.
+The hyperparameter `history` (default 0) gives the policy the last k observations
+and voltages (`qube_suite.policies.history`), for policies that adapt to the plant.
 """
 
 from __future__ import annotations
@@ -25,8 +28,8 @@ import pathlib
 import time
 from typing import Any
 
+from qube_suite import policies, suite
 from qube_suite import randomization as randomization_configs
-from qube_suite import suite
 from qube_suite.training.hyperparameters import EXPLORING_STARTS, HYPERPARAMETERS
 
 RL_EXTRA = ("stable_baselines3", "torch", "tensorboard")
@@ -62,7 +65,8 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
           domain: str = "qube", out: str | pathlib.Path | None = None, num_envs: int | None = None,
           domain_kwargs: dict[str, Any] | None = None, evaluations: int = 20, eval_episodes: int = 8,
           checkpoints: int = 10, progress: bool = True, hyperparameters: dict[str, Any] | None = None,
-          init: str | pathlib.Path | None = None) -> TrainingResult:
+          init: str | pathlib.Path | None = None, exploring_starts: float | None = None,
+          resume: bool = False) -> TrainingResult:
     """Train `algo` ("ppo" or "sac") on `task` for `steps` environment steps and export the policy.
 
     PPO rounds `steps` up to whole rollouts (n_steps x num_envs).
@@ -79,9 +83,16 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         progress: show progress on stderr (a bar on a terminal, a line per 10 % otherwise).
         hyperparameters: overrides of `HYPERPARAMETERS[algo]`.
         init: directory of a previous run of `algo` on a task with the same
-            observation layout, or the same without the follow target; training
-            starts from its `model.zip` and `vecnormalize.pkl` (the network's shape
-            is that run's; every other hyperparameter is this run's).
+            observation layout, or the same without the follow target or without
+            history; training starts from its `model.zip` and `vecnormalize.pkl`
+            (the network's shape is that run's; every other hyperparameter is this
+            run's). Or a PPO policy file or shipped policy name: its actor and
+            normalisation, with a fresh value network (`warm_start.from_policy`).
+        exploring_starts: fraction of training episodes that start anywhere, in
+            simulation (default: the task's, `EXPLORING_STARTS`).
+        resume: if `out` holds checkpoints of an interrupted run (with these
+            settings), continue from the latest one to `steps` in all, its
+            evaluations kept; otherwise start as usual.
     """
     if algo not in HYPERPARAMETERS:
         raise ValueError(f"unknown algorithm {algo!r}; valid: {', '.join(HYPERPARAMETERS)}")
@@ -91,7 +102,11 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         raise ValueError(f"steps must be a positive integer, got {steps!r}")
     if randomization is not None:
         randomization_configs.load(randomization)  # a bad config fails here, before any environment
-    if init is not None:
+    if exploring_starts is not None and not 0.0 <= exploring_starts <= 1.0:
+        raise ValueError(f"exploring_starts must be a fraction in [0, 1], got {exploring_starts!r}")
+    if init is not None and not pathlib.Path(init).is_dir() and policies.names_a_policy(init):
+        init = policies.load_policy(init)
+    elif init is not None:
         init = pathlib.Path(init)
         missing = [name for name in ("model.zip", "vecnormalize.pkl") if not (init / name).is_file()]
         if missing:
@@ -99,11 +114,12 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
     require_rl()
     return _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
                   eval_episodes, checkpoints, progress, {**HYPERPARAMETERS[algo], **(hyperparameters or {})},
-                  init)
+                  init, exploring_starts, resume)
 
 
 def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
-           eval_episodes, checkpoints, progress, hyperparameters, init) -> TrainingResult:
+           eval_episodes, checkpoints, progress, hyperparameters, init, exploring_starts,
+           resume) -> TrainingResult:
     import stable_baselines3
     import torch
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
@@ -112,7 +128,7 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
 
     from qube_suite.policies import export, save
     from qube_suite.training import warm_start
-    from qube_suite.training.callbacks import OnNewBest, ProgressBar
+    from qube_suite.training.callbacks import FrozenUntil, OnNewBest, ProgressBar
     from qube_suite.training.environments import make_vec_env
 
     torch.set_num_threads(1)  # small networks: one thread is fastest, and leaves cores to the worlds
@@ -121,31 +137,46 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     settings = dict(hyperparameters)
     num_envs = num_envs or settings.pop("num_envs")
     settings.pop("num_envs", None)
+    history = settings.pop("history", 0)
     if algo == "ppo":  # minibatches no larger than a rollout
         settings["batch_size"] = min(settings["batch_size"], settings["n_steps"] * num_envs)
     env_kwargs = {"domain": domain, "randomization": randomization, "domain_kwargs": domain_kwargs}
-    starts = EXPLORING_STARTS.get(task, 0.0) if domain == "qube" else 0.0
-    venv = make_vec_env(task, num_envs, seed, exploring_starts=starts, **env_kwargs)
-    if init is None:
+    if exploring_starts is None:
+        exploring_starts = EXPLORING_STARTS.get(task, 0.0)
+    starts = exploring_starts if domain == "qube" else 0.0
+    venv = make_vec_env(task, num_envs, seed, exploring_starts=starts, history=history, **env_kwargs)
+    checkpoint = warm_start.latest_checkpoint(out / "checkpoints", algo) if resume else None
+    if checkpoint is not None:
+        venv = warm_start.load_checkpoint_normalization(checkpoint, venv)
+    elif init is None:
         venv = VecNormalize(venv, gamma=settings["gamma"], norm_reward=algo == "ppo")
-    else:
-        venv = warm_start.load_normalization(init, venv, settings["gamma"])
+    elif isinstance(init, pathlib.Path):
+        venv = warm_start.load_normalization(init, venv, settings["gamma"], history)
     eval_worlds = 1 if domain != "qube" else min(eval_episodes, 8)
-    eval_venv = VecNormalize(make_vec_env(task, eval_worlds, seed + 100_000, **env_kwargs), training=False,
-                             norm_reward=False)
+    eval_venv = VecNormalize(make_vec_env(task, eval_worlds, seed + 100_000, history=history, **env_kwargs),
+                             training=False, norm_reward=False)
     observation_size = venv.unwrapped.observation_space.shape[0]
     policy_kwargs = dict(settings.pop("policy_kwargs"))
     activations = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
     policy_kwargs["activation_fn"] = activations[policy_kwargs["activation_fn"]]
     algorithm = getattr(stable_baselines3, algo.upper())
-    if init is None:
+    frozen = []
+    if checkpoint is not None:
+        model = warm_start.load_checkpoint_model(algorithm, checkpoint, venv, seed, settings)
+    elif init is None:
         model = algorithm("MlpPolicy", venv, seed=seed, device="cpu", policy_kwargs=policy_kwargs, **settings)
-    else:
+    elif isinstance(init, pathlib.Path):
         model = warm_start.load_model(algorithm, init, venv, seed, settings)
+    else:
+        model, venv = warm_start.from_policy(algorithm, init, venv, seed, settings, policy_kwargs, history)
+    if init is not None and not isinstance(init, pathlib.Path):
+        frozen = [FrozenUntil(warm_start.actor_parameters(model), warm_start.VALUE_WARMUP_STEPS)]
+    resumed = int(model.num_timesteps) if checkpoint is not None else 0
     model.set_logger(configure(str(out), ["csv", "tensorboard"]))
+    source = None if init is None else str(init) if isinstance(init, pathlib.Path) else init.name
     record = {"algo": algo, "task": task, "domain": domain, "randomization": _describe(randomization),
               "domain_kwargs": domain_kwargs, "seed": seed, "num_envs": num_envs,
-              "init": None if init is None else str(init), "exploring_starts": starts,
+              "init": source, "exploring_starts": starts, "resumed_from_steps": resumed,
               "hyperparameters": hyperparameters, "stable_baselines3": stable_baselines3.__version__}
     start = time.perf_counter()
 
@@ -153,7 +184,8 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
         training = {**record, "steps": int(model.num_timesteps), "wall_time_s": time.perf_counter() - start}
         save(export.from_sb3(model, venv.obs_rms.mean, venv.obs_rms.var, epsilon=venv.epsilon,
                              clip=venv.clip_obs, feature_map="trig", observation_size=observation_size,
-                             voltage_limit=float(venv.action_space.high[0]), task=task, training=training),
+                             voltage_limit=float(venv.action_space.high[0]), task=task, training=training,
+                             history=history),
              path)
 
     rollout = settings["n_steps"] * num_envs if algo == "ppo" else num_envs
@@ -165,11 +197,14 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     evaluation = EvalCallback(eval_venv, n_eval_episodes=eval_episodes, eval_freq=every(evaluations),
                               deterministic=True, log_path=str(out), verbose=0,
                               callback_on_new_best=OnNewBest(lambda: export_to(out / "best_policy.npz")))
+    if resumed:
+        warm_start.continue_evaluations(evaluation, out / "evaluations.npz")
     checkpointing = CheckpointCallback(every(checkpoints), str(out / "checkpoints"), name_prefix=algo,
                                        save_vecnormalize=True)
-    callbacks = [checkpointing, evaluation] + ([ProgressBar(total, evaluation)] if progress else [])
+    callbacks = [*frozen, checkpointing, evaluation] + ([ProgressBar(total, evaluation)] if progress else [])
     try:
-        model.learn(total_timesteps=total, callback=CallbackList(callbacks))
+        model.learn(total_timesteps=max(total - resumed, 1), callback=CallbackList(callbacks),
+                    reset_num_timesteps=not resumed)
         wall_time = time.perf_counter() - start
         model.save(out / "model.zip")
         venv.save(str(out / "vecnormalize.pkl"))

@@ -42,3 +42,25 @@ class OnNewBest(BaseCallback):
     def _on_step(self) -> bool:
         self._action()
         return True
+
+
+class FrozenUntil(BaseCallback):
+    """Keeps `parameters` frozen (no gradient) until `steps` environment steps, then frees them."""
+
+    def __init__(self, parameters: list, steps: int):
+        super().__init__()
+        self._parameters = parameters
+        self._steps = steps
+
+    def _on_training_start(self) -> None:
+        self._set(self.num_timesteps >= self._steps)
+
+    def _on_rollout_start(self) -> None:
+        self._set(self.num_timesteps >= self._steps)
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _set(self, free: bool) -> None:
+        for parameter in self._parameters:
+            parameter.requires_grad_(free)

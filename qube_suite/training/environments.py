@@ -6,8 +6,9 @@ MuJoCo rollout call, each with its own randomization draws) through
 it does not take, each world is a single environment in SB3's `DummyVecEnv`; the
 hardware domain is one substitute board per process (`SubprocVecEnv`), as real
 boards are separate machines.
-Observations leave through the policy's feature map (`VecFeatures`) and episode
-returns are recorded by `VecMonitor`. Training environments of swing-up tasks in
+Observations leave through the policy's feature map (`VecFeatures`), extended by
+the last steps' features and voltages for policies with history (`VecHistory`),
+and episode returns are recorded by `VecMonitor`. Training environments of swing-up tasks in
 simulation may start some episodes anywhere (`ExploringStarts`); evaluation
 environments always start as the task does.
 """
@@ -20,9 +21,11 @@ from typing import Any
 
 import gymnasium
 import numpy as np
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecMonitor
+from gymnasium import spaces
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecEnvWrapper, VecMonitor
 
 from qube_suite.policies.features import FEATURE_MAPS
+from qube_suite.policies.history import History, input_size
 from qube_suite.wrappers.registration import gymnasium_id
 from qube_suite.wrappers.sb3 import VecFeatures, make_sb3_vec_env
 
@@ -97,11 +100,47 @@ def raw_vec_env(task: str, num_envs: int, seed: int, domain: str = "qube", rando
     return venv
 
 
+class VecHistory(VecEnvWrapper):
+    """Feature observations of `venv` extended by each world's last `length` features and
+    voltages (`qube_suite.policies.history`), restarted at every episode's first step."""
+
+    def __init__(self, venv: VecEnv, length: int):
+        self._features_size = venv.observation_space.shape[0]
+        size = input_size(self._features_size, length)
+        super().__init__(venv, observation_space=spaces.Box(-np.inf, np.inf, (size,), np.float32))
+        self._history = History(length, venv.num_envs, self._features_size, np.float32)
+        self._last = np.zeros((venv.num_envs, self._features_size), np.float32)
+        self._voltages = np.zeros(venv.num_envs, np.float32)
+
+    def reset(self) -> np.ndarray:
+        self._last = self.venv.reset()
+        self._history.start(self._last)
+        return self._history.inputs(self._last)
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._voltages = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, -1)[:, 0]
+        self.venv.step_async(actions)
+
+    def step_wait(self):
+        observations, rewards, dones, infos = self.venv.step_wait()
+        self._history.push(self._last, self._voltages)
+        for world, info in enumerate(infos):
+            if "terminal_observation" in info:
+                terminal = info["terminal_observation"][None, :]
+                info["terminal_observation"] = self._history.inputs(terminal, [world])[0]
+        if np.any(dones):
+            self._history.start(observations[dones], dones)
+        self._last = observations
+        return self._history.inputs(observations), rewards, dones, infos
+
+
 def make_vec_env(task: str, num_envs: int, seed: int, feature_map: str = "trig",
-                 exploring_starts: float = 0.0, **kwargs: Any) -> VecEnv:
+                 exploring_starts: float = 0.0, history: int = 0, **kwargs: Any) -> VecEnv:
     """`raw_vec_env(...)` with its episode returns recorded and observations mapped to features;
-    `exploring_starts`: the fraction of episodes that start anywhere (simulation only)."""
+    `exploring_starts`: the fraction of episodes that start anywhere (simulation only); `history`:
+    past steps added to the observations (`VecHistory`)."""
     venv = raw_vec_env(task, num_envs, seed, **kwargs)
     if exploring_starts:
         explore_starts(venv, exploring_starts)
-    return VecFeatures(VecMonitor(venv), FEATURE_MAPS[feature_map])
+    venv = VecFeatures(VecMonitor(venv), FEATURE_MAPS[feature_map])
+    return VecHistory(venv, history) if history else venv

@@ -14,6 +14,7 @@ from typing import Any
 
 PPO: dict[str, Any] = {
     "num_envs": 64,            # zoo: 8; 64 native-vector worlds make a step cheap (many worlds per call)
+    "history": 0,              # ours: past observations and voltages the policy sees (policies.history)
     "n_steps": 128,            # zoo: 2048; 64 x 128 = 8192 samples per update, the zoo's order (8 x 2048)
     "batch_size": 2048,        # zoo: 64; 4 minibatches per update: gradient steps dominate CPU time
     "n_epochs": 10,            # zoo
@@ -32,6 +33,7 @@ PPO: dict[str, Any] = {
 
 SAC: dict[str, Any] = {
     "num_envs": 4,
+    "history": 0,              # ours: as PPO's
     "learning_rate": 7.3e-4,   # zoo (pybullet defaults)
     "buffer_size": 300_000,    # zoo
     "batch_size": 256,         # zoo
@@ -56,4 +58,5 @@ round (about 1230 after 2.4 M steps). The shipped swing-up policy also starts fr
 (`--init`), which it keeps and extends outwards, and `ppo:swingup_follow` from the swing-up run."""
 
 HYPERPARAMETERS: dict[str, dict[str, Any]] = {"ppo": PPO, "sac": SAC}
-"""Algorithm name -> hyperparameters (`num_envs` is ours; the rest go to the SB3 constructor)."""
+"""Algorithm name -> hyperparameters (`num_envs` and `history` are ours; the rest go to the SB3
+constructor)."""

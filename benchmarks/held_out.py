@@ -1,0 +1,129 @@
+"""Swing-up policies and controllers on held-out plants: Qubes nobody described to them.
+
+Draws `--plants` plants of the hardware substitute (`qube_hardware`,
+`domain_kwargs={"plant": ...}`) from the held-out ranges below (seeded by
+`--plant-seed`; a draw inside every one of the `sim2real` preset's ranges is
+redrawn, so every plant lies outside what `sim2real` trains on), and runs each
+policy `--episodes` episodes of swing-up on each. The substitute starts every
+episode hanging at rest and is otherwise deterministic, so each episode varies
+the plant's Coulomb friction and cable stiffness by up to +-`EPISODE_SPREAD`
+(clipped to the held-out ranges), seeded by the episode. Reports per plant and
+overall the mean return and success (no termination, the pendulum within 10
+degrees of upright for the final 2 s) with a 95 % Wilson interval.
+
+    python benchmarks/held_out.py [--policy ppo:swingup ...] [--plants 10] [--episodes 20]
+                                  [--plant-seed 2026] [--jobs 1] [--json FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import multiprocessing
+
+import numpy as np
+
+from qube_suite import evaluate
+from qube_suite.hardware.plant import plant_parameters
+from qube_suite.randomization.presets import PRESETS
+
+RELATIVE = {"pendulum_mass": 0.30, "pendulum_length": 0.10, "motor_resistance": 0.25,
+            "motor_torque_constant": 0.15, "rotor_inertia": 0.30}
+"""Held-out ranges: parameter -> half-width relative to the substitute's plant (uniform)."""
+ABSOLUTE = {"arm_friction": 4e-3, "pendulum_friction": 2e-4, "cable_stiffness": 4e-3}
+"""Held-out ranges: parameter -> upper end (N m, N m, N m/rad), from 0 (uniform)."""
+EPISODE_SPREAD = 0.1
+"""Relative variation of each episode's friction and cable stiffness around its plant's values."""
+
+_PLANT = plant_parameters()
+
+
+def inside_sim2real(plant: dict[str, float]) -> bool:
+    """Whether every value of `plant` lies within the `sim2real` preset's range for it."""
+    ranges = PRESETS["sim2real"]["parameters"]
+    for name, value in plant.items():
+        spec = ranges[name]
+        scale = 1.0 if spec.get("relative", True) is False else _PLANT[name]
+        if not spec["low"] * scale <= value <= spec["high"] * scale:
+            return False
+    return True
+
+
+def draw_plants(count: int, seed: int) -> list[dict[str, float]]:
+    """`count` plants from the held-out ranges, each outside the `sim2real` ranges (seeded)."""
+    random = np.random.default_rng(seed)
+    plants = []
+    while len(plants) < count:
+        plant = {name: _PLANT[name] * random.uniform(1 - w, 1 + w) for name, w in RELATIVE.items()}
+        plant |= {name: random.uniform(0.0, high) for name, high in ABSOLUTE.items()}
+        if not inside_sim2real(plant):
+            plants.append(plant)
+    return plants
+
+
+def episode_plant(plant: dict[str, float], seed: int) -> dict[str, float]:
+    """`plant` with its friction and cable stiffness varied by +-`EPISODE_SPREAD`, seeded by `seed`."""
+    random = np.random.default_rng(seed)
+    varied = dict(plant)
+    for name, high in ABSOLUTE.items():
+        varied[name] = min(high, plant[name] * random.uniform(1 - EPISODE_SPREAD, 1 + EPISODE_SPREAD))
+    return varied
+
+
+def wilson_interval(successes: int, trials: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson score interval of a success rate."""
+    p = successes / trials
+    centre = (p + z * z / (2 * trials)) / (1 + z * z / trials)
+    half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / (1 + z * z / trials)
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def score(job: tuple[str, int, dict[str, float], int, int]) -> dict:
+    """One (policy, plant) cell: `episodes` episodes from `seed`, each on a fresh substitute."""
+    policy, index, plant, episodes, seed = job
+    results = [evaluate(policy, domain="qube_hardware", task="swingup", episodes=1, seed=seed + episode,
+                        domain_kwargs={"plant": episode_plant(plant, seed + episode)})
+               for episode in range(episodes)]
+    successes = sum(result.successes[0] for result in results)
+    return {"policy": policy, "plant": index, "parameters": plant, "successes": int(successes),
+            "episodes": episodes, "mean_return": float(np.mean([r.returns[0] for r in results]))}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--policy", nargs="+", default=["ppo:swingup", "swingup"],
+                        help="policies (shipped names or files) or controller names")
+    parser.add_argument("--plants", type=int, default=10)
+    parser.add_argument("--episodes", type=int, default=20)
+    parser.add_argument("--plant-seed", type=int, default=2026, help="seed of the plant draws")
+    parser.add_argument("--seed", type=int, default=0, help="first episode seed")
+    parser.add_argument("--jobs", type=int, default=1, help="cells scored in parallel")
+    parser.add_argument("--json", default=None, help="also write the cells to this JSON file")
+    args = parser.parse_args()
+    plants = draw_plants(args.plants, args.plant_seed)
+    jobs = [(policy, i, plant, args.episodes, args.seed) for policy in args.policy
+            for i, plant in enumerate(plants)]
+    with multiprocessing.Pool(args.jobs) as pool:
+        cells = pool.map(score, jobs, chunksize=1)
+    print("| policy | plant | return | success (95 % CI) |\n|---|---|---|---|")
+    for policy in args.policy:
+        mine = [cell for cell in cells if cell["policy"] == policy]
+        for cell in mine:
+            low, high = wilson_interval(cell["successes"], cell["episodes"])
+            rate = cell["successes"] / cell["episodes"]
+            print(f"| {policy} | {cell['plant']} | {cell['mean_return']:.0f} | "
+                  f"{100 * rate:.0f} % ({100 * low:.0f}–{100 * high:.0f} %) |")
+        successes, trials = sum(c["successes"] for c in mine), sum(c["episodes"] for c in mine)
+        low, high = wilson_interval(successes, trials)
+        worst = min(c["successes"] / c["episodes"] for c in mine)
+        print(f"| {policy} | all {len(mine)} | {np.mean([c['mean_return'] for c in mine]):.0f} | "
+              f"{100 * successes / trials:.1f} % ({100 * low:.0f}–{100 * high:.0f} %); worst plant "
+              f"{100 * worst:.0f} % |")
+    if args.json:
+        with open(args.json, "w") as file:
+            json.dump({"plants": plants, "cells": cells}, file, indent=2)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,176 @@
+"""Recipes: how each shipped policy is trained, as data, run in one command.
+
+    from qube_suite.training import recipes
+    recipes.RECIPES["swingup"].steps             # 7500000 over three stages
+    recipes.run("swingup", out="runs/swingup")   # runs/swingup/<stage>/..., resumable
+
+A recipe is a chain of training runs (`Stage`), each starting from an earlier
+stage's run (`init`), with its own task, steps, randomization, exploring starts,
+seed and hyperparameters; its result is one policy file of its last stage
+(`keep`: the final `policy.npz`, or `best_policy.npz`, the best periodic
+evaluation's). `qube-suite train --task T` with no single-run option runs the
+recipe named T; `qube-suite train --list-recipes` lists them. A stage whose
+directory holds a finished run (`training.json`) is not run again, and an
+interrupted stage continues from its latest checkpoint (`train(resume=True)`),
+so an interrupted recipe resumes where it was, to within a checkpoint.
+
+Expected wall times are those of the runs that made the shipped policies on a
+2-core machine shared with other work (PPO, 64 vector worlds); an idle machine is
+faster.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import pathlib
+from typing import Any
+
+from qube_suite import randomization as randomization_configs
+from qube_suite import suite
+
+KEEP = ("policy.npz", "best_policy.npz")
+
+
+@dataclasses.dataclass(frozen=True)
+class Stage:
+    """One training run of a recipe: `train(task, steps=..., ...)` into `<recipe dir>/<name>`.
+
+    `init`: the name of an earlier stage whose run this one starts from (or None);
+    `exploring_starts`: the fraction of episodes that start anywhere (None: the
+    task's default, `hyperparameters.EXPLORING_STARTS`); `keep`: the policy file
+    this stage yields (`KEEP`); `minutes`: expected wall time.
+    """
+
+    name: str
+    task: str
+    steps: int
+    minutes: float
+    init: str | None = None
+    randomization: str | None = None
+    exploring_starts: float | None = None
+    seed: int = 0
+    hyperparameters: dict[str, Any] = dataclasses.field(default_factory=dict)
+    keep: str = "policy.npz"
+
+
+@dataclasses.dataclass(frozen=True)
+class Recipe:
+    """Stages run in order; the policy is the last stage's `keep` file. `target`: what it reaches."""
+
+    name: str
+    stages: tuple[Stage, ...]
+    target: str
+
+    @property
+    def steps(self) -> int:
+        """Environment steps of all stages."""
+        return sum(stage.steps for stage in self.stages)
+
+    @property
+    def minutes(self) -> float:
+        """Expected wall time of all stages (min)."""
+        return sum(stage.minutes for stage in self.stages)
+
+
+def _swingup_chain() -> tuple[Stage, ...]:
+    return (Stage("balance", "balance", 500_000, 6),
+            Stage("swingup_nominal", "swingup", 5_000_000, 9, init="balance"),
+            Stage("swingup", "swingup", 2_000_000, 6, init="swingup_nominal", randomization="sim2real",
+                  seed=1))
+
+
+RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
+    Recipe("balance", (Stage("balance", "balance", 500_000, 6),),
+           "ppo:balance: 2044 in simulation, 100 % success on both domains"),
+    Recipe("dampen", (Stage("dampen", "dampen", 700_000, 8, keep="best_policy.npz"),),
+           "ppo:dampen: 1944 in simulation, 100 % success on both domains (best evaluation at 0.6 M steps)"),
+    Recipe("balance_follow", (
+        Stage("balance_follow_nominal", "balance_follow", 1_500_000, 9),
+        Stage("balance_follow", "balance_follow", 1_000_000, 4, init="balance_follow_nominal",
+              randomization="sim2real", keep="best_policy.npz")),
+        "ppo:balance_follow: 1959 in simulation, 1950 on the substitute, 100 % success"),
+    Recipe("swingup", _swingup_chain(),
+           "ppo:swingup: 1822 in simulation, 1824 on the substitute, 100 % success"),
+    Recipe("swingup_follow", (*_swingup_chain(), Stage(
+        "swingup_follow", "swingup_follow", 2_000_000, 6, init="swingup", randomization="sim2real", seed=1,
+        keep="best_policy.npz")),
+        "ppo:swingup_follow: 1816 in simulation, 1808 on the substitute, 100 % success"),
+    Recipe("rotor", (Stage("spin", "swingup", 1_500_000, 3, seed=1),
+                     Stage("rotor", "rotor", 1_500_000, 3, init="spin", keep="best_policy.npz")),
+           "ppo:rotor: 60 revolutions in simulation, 17 on the substitute, 100 % success"),
+    Recipe("swingup_adaptive", (*_swingup_chain(), Stage(
+        "swingup_adaptive", "swingup", 8_000_000, 10, init="swingup", randomization="wide", seed=2,
+        hyperparameters={"history": 8})),
+        "swing-up on held-out plants (benchmarks/held_out.py): 20 % so far, not yet the 90 % aimed at"),
+)}
+"""Recipe name -> recipe; every shipped policy `ppo:<name>` has the recipe `<name>`."""
+
+
+def check(recipe: Recipe) -> None:
+    """ValueError unless `recipe` can run: known tasks, inits naming earlier stages, loadable
+    randomizations, positive steps, known kept files, unique stage names."""
+    seen: set[str] = set()
+    for stage in recipe.stages:
+        where = f"recipe {recipe.name!r}, stage {stage.name!r}"
+        if stage.name in seen:
+            raise ValueError(f"{where}: a stage of that name comes earlier")
+        if stage.task not in suite.TASKS_BY_DOMAIN["qube"]:
+            raise ValueError(f"{where}: unknown task {stage.task!r}")
+        if stage.init is not None and stage.init not in seen:
+            raise ValueError(f"{where}: init {stage.init!r} is not an earlier stage "
+                             f"({', '.join(seen) or 'none'})")
+        if not (isinstance(stage.steps, int) and stage.steps > 0):
+            raise ValueError(f"{where}: steps must be a positive integer, got {stage.steps!r}")
+        if stage.keep not in KEEP:
+            raise ValueError(f"{where}: keep must be one of {', '.join(KEEP)}, got {stage.keep!r}")
+        if stage.randomization is not None:
+            randomization_configs.load(stage.randomization)
+        seen.add(stage.name)
+    if not recipe.stages:
+        raise ValueError(f"recipe {recipe.name!r} has no stages")
+
+
+def finished(directory: pathlib.Path) -> bool:
+    """Whether `directory` holds a finished training run."""
+    return (directory / "training.json").is_file() and (directory / "model.zip").is_file()
+
+
+def run(recipe: str | Recipe, out: str | pathlib.Path | None = None, progress: bool = True,
+        **train_kwargs: Any) -> pathlib.Path:
+    """Run `recipe` (a name of `RECIPES` or a `Recipe`) into `out` (default `runs/<name>`), one
+    subdirectory per stage, skipping stages already finished there and continuing an interrupted
+    stage from its latest checkpoint; return the kept policy file.
+
+    `train_kwargs` go to every stage's `train` (e.g. `evaluations`, `num_envs`).
+    """
+    from qube_suite.training import train
+
+    if isinstance(recipe, str):
+        if recipe not in RECIPES:
+            raise ValueError(f"unknown recipe {recipe!r}; recipes: {', '.join(RECIPES)}")
+        recipe = RECIPES[recipe]
+    check(recipe)
+    root = pathlib.Path(out or f"runs/{recipe.name}")
+    for number, stage in enumerate(recipe.stages, start=1):
+        directory = root / stage.name
+        if finished(directory):
+            print(f"stage {number}/{len(recipe.stages)} {stage.name}: finished in {directory}, kept")
+            continue
+        print(f"stage {number}/{len(recipe.stages)} {stage.name}: {stage.task}, {stage.steps} steps, "
+              f"randomization {stage.randomization or 'none'} (about {stage.minutes:g} min)", flush=True)
+        train(stage.task, steps=stage.steps, seed=stage.seed, randomization=stage.randomization,
+              out=directory, init=None if stage.init is None else root / stage.init,
+              exploring_starts=stage.exploring_starts, hyperparameters=dict(stage.hyperparameters),
+              progress=progress, resume=True, **train_kwargs)
+    return root / recipe.stages[-1].name / recipe.stages[-1].keep
+
+
+def listing() -> str:
+    """A table of the recipes: name, stages, steps, expected wall time, target."""
+    lines = ["| recipe | stages | steps | expected wall time | target |", "|---|---|---|---|---|"]
+    for recipe in RECIPES.values():
+        stages = " → ".join(f"{s.task} {s.steps / 1e6:g} M"
+                            + (f" ({s.randomization})" if s.randomization else "") for s in recipe.stages)
+        lines.append(f"| {recipe.name} | {stages} | {recipe.steps / 1e6:g} M | {recipe.minutes:g} min | "
+                     f"{recipe.target} |")
+    return "\n".join(lines)

@@ -1,0 +1,118 @@
+"""Training recipes: the table is valid and matches the shipped policies' records, the listing
+shows it, `qube-suite train --task T` runs T's recipe, and a tiny recipe runs and resumes."""
+
+import dataclasses
+import importlib.util
+import json
+
+import numpy as np
+import pytest
+
+from qube_suite import cli, training
+from qube_suite.policies import load_policy, shipped
+from qube_suite.training import recipes
+from qube_suite.training.recipes import RECIPES, Recipe, Stage
+
+HAVE_RL = all(importlib.util.find_spec(name) for name in training.RL_EXTRA)
+needs_rl = pytest.mark.skipif(not HAVE_RL, reason="needs the rl extra")
+
+
+@pytest.mark.parametrize("name", list(RECIPES))
+def test_every_recipe_is_valid(name):
+    recipes.check(RECIPES[name])
+
+
+def test_every_shipped_policy_has_a_recipe_that_matches_its_training_record():
+    for spec in shipped():
+        recipe = RECIPES[spec.split(":", 1)[1]]
+        last = recipe.stages[-1]
+        record = load_policy(spec).meta["training"]
+        assert record["task"] == last.task, spec
+        assert record["randomization"] == last.randomization, spec
+        assert record["seed"] == last.seed, spec
+        assert record["steps"] <= last.steps + 8192, spec  # PPO rounds up to whole rollouts
+        assert (record.get("init") is None) == (last.init is None), spec
+        if last.keep == "policy.npz":  # the final policy has the whole budget
+            assert record["steps"] >= last.steps, spec
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    ({"task": "juggle"}, "unknown task 'juggle'"),
+    ({"init": "later"}, "init 'later' is not an earlier stage"),
+    ({"steps": 0}, "steps must be a positive integer"),
+    ({"keep": "model.zip"}, "keep must be one of policy.npz, best_policy.npz"),
+    ({"randomization": "milder"}, "unknown randomization preset 'milder'"),
+])
+def test_a_bad_recipe_is_refused_naming_the_stage(change, message):
+    stage = dataclasses.replace(Stage("only", "balance", 100, 1), **change)
+    with pytest.raises(ValueError, match=message) as error:
+        recipes.check(Recipe("bad", (stage,), "nothing"))
+    assert "randomization" in message or "stage 'only'" in str(error.value)
+
+
+def test_listing_shows_every_recipe_with_its_steps_and_time(capsys):
+    assert cli.main(["train", "--list-recipes"]) == 0
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| ")][1:]
+    assert [row.split(" | ")[0][2:] for row in rows] == list(RECIPES)
+    for row, recipe in zip(rows, RECIPES.values(), strict=True):
+        cells = row.split(" | ")
+        assert cells[2] == f"{recipe.steps / 1e6:g} M" and cells[3] == f"{recipe.minutes:g} min"
+    assert "balance 0.5 M → swingup 5 M → swingup 2 M (sim2real)" in rows[list(RECIPES).index("swingup")]
+
+
+def test_train_with_a_task_alone_runs_its_recipe_and_with_options_one_run(monkeypatch, tmp_path):
+    calls = []
+    monkeypatch.setattr(recipes, "run", lambda name, **kwargs: calls.append(("recipe", name)) or tmp_path)
+    result = training.TrainingResult(tmp_path, tmp_path, tmp_path, 1, 0.0, 0.0)
+    monkeypatch.setattr(training, "train",
+                        lambda task, **kwargs: calls.append(("train", task, kwargs["steps"])) or result)
+    assert cli.main(["train", "--task", "swingup"]) == 0
+    assert cli.main(["train", "--task", "swingup", "--steps", "1000"]) == 0
+    assert cli.main(["train", "--recipe", "rotor", "--out", str(tmp_path)]) == 0
+    assert cli.main(["train", "--task", "swingup_sparse"]) == 0  # no recipe: one run, default steps
+    assert calls == [("recipe", "swingup"), ("train", "swingup", 1000), ("recipe", "rotor"),
+                     ("train", "swingup_sparse", 2_000_000)]
+    assert cli.main(["train", "--recipe", "rotor", "--steps", "5"]) == 2
+    assert cli.main(["train"]) == 2
+
+
+@needs_rl
+def test_a_tiny_recipe_runs_stage_by_stage_and_resumes(tmp_path, capsys):
+    tiny = Recipe("tiny", (
+        Stage("first", "balance", 512, 0.1, hyperparameters={"n_steps": 256}),
+        Stage("second", "swingup", 512, 0.1, init="first", randomization="wide", seed=2, exploring_starts=0.0,
+              hyperparameters={"n_steps": 256, "history": 2}, keep="best_policy.npz")), "runs")
+    kwargs = {"num_envs": 2, "evaluations": 1, "eval_episodes": 1, "checkpoints": 1}
+    policy = recipes.run(tiny, out=tmp_path, progress=False, **kwargs)
+    assert policy == tmp_path / "second" / "best_policy.npz" and policy.is_file()
+    second = json.loads((tmp_path / "second" / "training.json").read_text())
+    assert second["init"] == str(tmp_path / "first") and second["seed"] == 2
+    assert second["randomization"] == "wide" and second["exploring_starts"] == 0.0
+    assert load_policy(policy).history == 2
+    first_record = (tmp_path / "first" / "training.json").stat().st_mtime_ns
+    (tmp_path / "second" / "training.json").unlink()  # as if interrupted in the second stage
+    capsys.readouterr()
+    recipes.run(tiny, out=tmp_path, progress=False, **kwargs)
+    assert "stage 1/2 first: finished" in capsys.readouterr().out
+    assert (tmp_path / "first" / "training.json").stat().st_mtime_ns == first_record  # not rerun
+    assert (tmp_path / "second" / "training.json").is_file()
+
+
+@needs_rl
+def test_an_interrupted_run_resumes_from_its_latest_checkpoint(tmp_path):
+    kwargs = {"num_envs": 2, "evaluations": 2, "eval_episodes": 1, "checkpoints": 2, "progress": False,
+              "hyperparameters": {"n_steps": 256}}
+    training.train("balance", steps=2048, out=tmp_path, **kwargs)
+    checkpoints = tmp_path / "checkpoints"
+    assert sorted(p.name for p in checkpoints.glob("*.zip")) == ["ppo_1024_steps.zip", "ppo_2048_steps.zip"]
+    for name in ("ppo_2048_steps.zip", "ppo_vecnormalize_2048_steps.pkl", "training.json", "model.zip"):
+        (checkpoints / name if "steps" in name else tmp_path / name).unlink()  # interrupted after 1024
+    with np.load(tmp_path / "evaluations.npz") as evaluations:
+        first = {key: evaluations[key][:1] for key in evaluations.files}
+    np.savez(tmp_path / "evaluations.npz", **first)
+    result = training.train("balance", steps=2048, out=tmp_path, resume=True, **kwargs)
+    record = json.loads((tmp_path / "training.json").read_text())
+    assert result.steps == 2048 and record["resumed_from_steps"] == 1024
+    assert list(np.load(tmp_path / "evaluations.npz")["timesteps"]) == [1024, 2048]  # the first one kept
+    fresh = training.train("balance", steps=512, out=tmp_path / "fresh", resume=True, **kwargs)
+    assert fresh.steps == 512  # nothing to resume: a new run
