@@ -27,6 +27,7 @@ from typing import Any
 
 from qube_suite import randomization as randomization_configs
 from qube_suite import suite
+from qube_suite.policies import MLPPolicy, load_policy, names_a_policy
 from qube_suite.training.hyperparameters import EXPLORING_STARTS, HYPERPARAMETERS
 
 RL_EXTRA = ("stable_baselines3", "torch", "tensorboard")
@@ -62,7 +63,8 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
           domain: str = "qube", out: str | pathlib.Path | None = None, num_envs: int | None = None,
           domain_kwargs: dict[str, Any] | None = None, evaluations: int = 20, eval_episodes: int = 8,
           checkpoints: int = 10, progress: bool = True, hyperparameters: dict[str, Any] | None = None,
-          init: str | pathlib.Path | None = None) -> TrainingResult:
+          init: str | pathlib.Path | None = None,
+          task_kwargs: dict[str, Any] | None = None) -> TrainingResult:
     """Train `algo` ("ppo" or "sac") on `task` for `steps` environment steps and export the policy.
 
     PPO rounds `steps` up to whole rollouts (n_steps x num_envs).
@@ -78,10 +80,14 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         checkpoints: save the model this many times during training.
         progress: show a progress bar (tqdm).
         hyperparameters: overrides of `HYPERPARAMETERS[algo]`.
+        task_kwargs: task settings for training and evaluation, e.g. a follow task's
+            target schedule (`{"target": "steps"}`); as `suite.load`, without `random`.
         init: directory of a previous run of `algo` on a task with the same
             observation layout, or the same without the follow target; training
             starts from its `model.zip` and `vecnormalize.pkl` (the network's shape
-            is that run's; every other hyperparameter is this run's).
+            is that run's; every other hyperparameter is this run's). For PPO also
+            a policy file or shipped policy ("ppo:balance_follow"): its actor and
+            feature normalisation, with a fresh critic (`warm_start.model_from_policy`).
     """
     if algo not in HYPERPARAMETERS:
         raise ValueError(f"unknown algorithm {algo!r}; valid: {', '.join(HYPERPARAMETERS)}")
@@ -91,19 +97,28 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         raise ValueError(f"steps must be a positive integer, got {steps!r}")
     if randomization is not None:
         randomization_configs.load(randomization)  # a bad config fails here, before any environment
-    if init is not None:
+    task_kwargs = dict(task_kwargs or {})
+    if "random" in task_kwargs:
+        raise ValueError("task_kwargs: training seeds the environments itself (seed=); drop 'random'")
+    suite.make_task(domain, task, task_kwargs)  # bad task settings fail here, before any environment
+    if init is not None and not pathlib.Path(init).is_dir() and names_a_policy(init):
+        if algo != "ppo":
+            raise ValueError("init: only PPO starts from a policy file; give SAC a run directory")
+        init = load_policy(init)
+    elif init is not None:
         init = pathlib.Path(init)
         missing = [name for name in ("model.zip", "vecnormalize.pkl") if not (init / name).is_file()]
         if missing:
-            raise ValueError(f"init: {init} is not a finished training run (no {', '.join(missing)})")
+            raise ValueError(f"init: {init} is not a finished training run (no {', '.join(missing)}) "
+                             "nor a policy file")
     require_rl()
     return _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
                   eval_episodes, checkpoints, progress, {**HYPERPARAMETERS[algo], **(hyperparameters or {})},
-                  init)
+                  init, task_kwargs)
 
 
 def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
-           eval_episodes, checkpoints, progress, hyperparameters, init) -> TrainingResult:
+           eval_episodes, checkpoints, progress, hyperparameters, init, task_kwargs) -> TrainingResult:
     import stable_baselines3
     import torch
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
@@ -123,11 +138,14 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     settings.pop("num_envs", None)
     if algo == "ppo":  # minibatches no larger than a rollout
         settings["batch_size"] = min(settings["batch_size"], settings["n_steps"] * num_envs)
-    env_kwargs = {"domain": domain, "randomization": randomization, "domain_kwargs": domain_kwargs}
+    env_kwargs = {"domain": domain, "randomization": randomization, "domain_kwargs": domain_kwargs,
+                  "task_kwargs": task_kwargs}
     starts = EXPLORING_STARTS.get(task, 0.0) if domain == "qube" else 0.0
     venv = make_vec_env(task, num_envs, seed, exploring_starts=starts, **env_kwargs)
     if init is None:
         venv = VecNormalize(venv, gamma=settings["gamma"], norm_reward=algo == "ppo")
+    elif isinstance(init, MLPPolicy):
+        venv = warm_start.normalization_from_policy(init, venv, settings["gamma"])
     else:
         venv = warm_start.load_normalization(init, venv, settings["gamma"])
     eval_worlds = 1 if domain != "qube" else min(eval_episodes, 8)
@@ -140,12 +158,15 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     algorithm = getattr(stable_baselines3, algo.upper())
     if init is None:
         model = algorithm("MlpPolicy", venv, seed=seed, device="cpu", policy_kwargs=policy_kwargs, **settings)
+    elif isinstance(init, MLPPolicy):
+        model = warm_start.model_from_policy(algorithm, init, venv, seed, settings, policy_kwargs)
     else:
         model = warm_start.load_model(algorithm, init, venv, seed, settings)
     model.set_logger(configure(str(out), ["csv", "tensorboard"]))
     record = {"algo": algo, "task": task, "domain": domain, "randomization": _describe(randomization),
-              "domain_kwargs": domain_kwargs, "seed": seed, "num_envs": num_envs,
-              "init": None if init is None else str(init), "exploring_starts": starts,
+              "domain_kwargs": domain_kwargs, "task_kwargs": task_kwargs, "seed": seed, "num_envs": num_envs,
+              "init": init.name if isinstance(init, MLPPolicy) else None if init is None else str(init),
+              "exploring_starts": starts,
               "hyperparameters": hyperparameters, "stable_baselines3": stable_baselines3.__version__}
     start = time.perf_counter()
 
