@@ -1,4 +1,4 @@
-"""Build the compiled part of qube_suite: the Cython HIL board substitute.
+"""Build the compiled parts of qube_suite: the Cython HIL board substitute and the iLQR kernel.
 
 Everything else about the package is declared in pyproject.toml.
 """
@@ -8,7 +8,8 @@ from setuptools import Extension, setup
 
 setup(
     ext_modules=cythonize(
-        [Extension("qube_suite.hardware._hil_sim", ["qube_suite/hardware/_hil_sim.pyx"])],
+        [Extension("qube_suite.hardware._hil_sim", ["qube_suite/hardware/_hil_sim.pyx"]),
+         Extension("qube_suite.baselines._ilqr", ["qube_suite/baselines/_ilqr.pyx"])],
         compiler_directives={"language_level": "3"},
     ),
 )

@@ -133,6 +133,25 @@ def _add_policy_arguments(parser: argparse.ArgumentParser) -> None:
                        help="a learned policy file ('qube-suite train' writes them)")
 
 
+def _add_target_arguments(parser: argparse.ArgumentParser) -> None:
+    """The follow tasks' target schedule (task keywords of `qube_suite.tasks.follow`)."""
+    target = parser.add_argument_group("follow tasks' target (see qube_suite.tasks.follow)")
+    target.add_argument("--target", help="jump (default: redrawn about twice a second), steps, sine, fixed, "
+                                         "or a CSV file with the header 'time,target' (s, rad)")
+    target.add_argument("--target-amplitude", type=float, metavar="RAD",
+                        help="jump, steps: targets within +-RAD; sine: its amplitude")
+    target.add_argument("--target-hold-time", type=float, metavar="S",
+                        help="steps: time each target is held; jump: the mean time")
+    target.add_argument("--target-frequency", type=float, metavar="HZ", help="sine: its frequency")
+    target.add_argument("--target-angle", type=float, metavar="RAD", help="fixed: the target")
+
+
+def _target_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    """The task keywords of the target options given."""
+    names = ("target", "target_amplitude", "target_hold_time", "target_frequency", "target_angle")
+    return {name: getattr(args, name) for name in names if getattr(args, name) is not None}
+
+
 def _make_policy(args: argparse.Namespace, environment: Any) -> tuple[Any, str]:
     """The policy the arguments name, built for `environment`, and its name."""
     from qube_suite.evaluation import policy_for
@@ -229,7 +248,8 @@ def _run(args: argparse.Namespace) -> int:
         if args.domain != "qube_hardware":
             raise ValueError("--board needs --domain qube_hardware")
         domain_kwargs["board"] = args.board
-    environment = suite.load(args.domain, args.task, task_kwargs={"random": args.seed},
+    task_kwargs = {"random": args.seed, **_target_kwargs(args)}
+    environment = suite.load(args.domain, args.task, task_kwargs=task_kwargs,
                              randomization=args.randomization, domain_kwargs=domain_kwargs)
     policy, recorder, episode_recorder = None, None, None
     try:
@@ -294,6 +314,7 @@ def _add_run(commands) -> None:
     run.add_argument("--realtime", action="store_true",
                      help="keep to the wall clock: sleep in simulation, the substitute board's realtime "
                           "mode on qube_hardware")
+    _add_target_arguments(run)
     _add_output_arguments(run)
     _add_quiet(run)
     run.set_defaults(run=_run)
@@ -361,7 +382,7 @@ def _eval(args: argparse.Namespace) -> int:
 
     policy = args.controller if args.policy is None else load_policy(args.policy)
     result = evaluate(policy, domain=args.domain, task=args.task, episodes=args.episodes,
-                      seed=args.seed, progress=not args.quiet)
+                      seed=args.seed, progress=not args.quiet, task_kwargs=_target_kwargs(args))
     summary = result.to_dict()
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -388,6 +409,7 @@ def _add_eval(commands) -> None:
     evaluation.add_argument("--episodes", type=int, default=20, help="number of episodes (default: 20)")
     evaluation.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
     evaluation.add_argument("--json", action="store_true", help="print the result as JSON")
+    _add_target_arguments(evaluation)
     _add_quiet(evaluation)
     evaluation.set_defaults(run=_eval)
 
@@ -409,7 +431,8 @@ def _add_bench(commands) -> None:
     bench.set_defaults(run=_bench)
 
 
-SINGLE_RUN_OPTIONS = ("algo", "steps", "seed", "randomization", "domain", "num_envs", "init", "history")
+SINGLE_RUN_OPTIONS = ("algo", "steps", "seed", "randomization", "domain", "num_envs", "init", "history",
+                      "target", "target_amplitude", "target_hold_time", "target_frequency", "target_angle")
 """`train` options that make one training run instead of the task's recipe."""
 
 
@@ -435,7 +458,8 @@ def _train(args: argparse.Namespace) -> int:
                    randomization=args.randomization, out=args.out, num_envs=args.num_envs,
                    evaluations=args.evaluations, eval_episodes=args.eval_episodes,
                    checkpoints=args.checkpoints, init=args.init, progress=not args.quiet,
-                   hyperparameters=None if args.history is None else {"history": args.history})
+                   hyperparameters=None if args.history is None else {"history": args.history},
+                   task_kwargs=_target_kwargs(args))
     print(f"trained {result.steps} steps in {result.wall_time:.0f} s; best evaluation return "
           f"{result.best_mean_return:.1f}; policy {result.policy} (logs in {result.directory})")
     return 0
@@ -480,6 +504,7 @@ def _add_train(commands) -> None:
                           help="the policy also sees its last K observations and voltages (default: 0)")
     training.add_argument("--out", default=None, help="run directory (default: runs/ALGO_TASK_SEED; of a "
                           "recipe: runs/RECIPE, a subdirectory per stage)")
+    _add_target_arguments(training)
     _add_quiet(training)
     training.set_defaults(run=_train)
 

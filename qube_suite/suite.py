@@ -15,6 +15,7 @@ from qube_suite.arguments import check_keywords, keywords_of
 from qube_suite.environment import DEFAULT_CONTROL_FREQUENCY, Environment
 from qube_suite.tasks import SUITE as _TASKS
 from qube_suite.tasks import QubeTask
+from qube_suite.tasks.follow import SCHEDULE_KEYWORDS
 
 _DOMAIN_MODULES = {
     "qube": "qube_suite.domains.qube",
@@ -26,8 +27,9 @@ _DOMAIN_MODULES = {
 ENVIRONMENT_KWARGS = ("control_frequency", "time_limit", "flat_observation")
 """Keys `environment_kwargs` may hold."""
 
-TASK_KWARGS = keywords_of(QubeTask)
-"""Keys `task_kwargs` may hold (every task takes the same; sparse variants are separate tasks)."""
+TASK_KWARGS = keywords_of(QubeTask) + SCHEDULE_KEYWORDS
+"""Keys `task_kwargs` may hold (every task takes the same, but for the target schedule's, which only
+the follow tasks take; sparse variants are separate tasks)."""
 
 TASKS_BY_DOMAIN: dict[str, tuple[str, ...]] = {domain: tuple(_TASKS) for domain in _DOMAIN_MODULES}
 """Domain name -> names of its tasks."""
@@ -59,7 +61,8 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
             board: the compiled substitute by default, or a real Qube).
         task_name: one of `TASKS_BY_DOMAIN[domain_name]`.
         task_kwargs: passed to the task: `random` (seed), `voltage_limit` (V),
-            `observation` ("state" or "trig").
+            `observation` ("state" or "trig"); in follow tasks, the target schedule
+            (`target`, `target_amplitude`, ...: see `qube_suite.tasks.follow`).
         environment_kwargs: `control_frequency` (Hz, default 250), `time_limit` (s,
             default 8.192) and `flat_observation` (dm_control's: one concatenated
             array under the key "observations").
@@ -104,4 +107,8 @@ def make_task(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] |
                          f"{', '.join(TASKS_BY_DOMAIN[domain_name])}")
     task_kwargs = dict(task_kwargs or {})
     check_keywords(task_kwargs, TASK_KWARGS, "task_kwargs")
+    schedule = sorted(set(task_kwargs) & set(SCHEDULE_KEYWORDS))
+    if schedule and task_name not in _TASKS.tagged("follow"):
+        raise ValueError(f"{', '.join(schedule)}: only the follow tasks "
+                         f"({', '.join(_TASKS.tagged('follow'))}) have a target schedule")
     return _TASKS[task_name](**task_kwargs)

@@ -146,3 +146,22 @@ def test_a_follow_task_starts_from_its_plain_task_with_the_target_weighted_zero(
     with pytest.raises(ValueError, match="more than this task's"):
         training.train("swingup", steps=256, num_envs=1, progress=False, out=tmp_path / "narrower",
                        init=follow.directory, hyperparameters={"n_steps": 256})
+
+
+@needs_rl
+def test_ppo_starts_from_a_shipped_policy_on_a_target_schedule(tmp_path):
+    shipped = load_policy("ppo:balance_follow")
+    run = training.train("balance_follow", steps=256, num_envs=1, evaluations=1, eval_episodes=1,
+                         checkpoints=1, progress=False, out=tmp_path / "steps", init="ppo:balance_follow",
+                         task_kwargs={"target": "steps", "target_hold_time": 2.0},
+                         hyperparameters={"n_steps": 256, "learning_rate": 0.0})
+    after = load_policy(run.final_policy)
+    assert after.meta["training"]["init"] == "ppo:balance_follow"
+    assert after.meta["training"]["task_kwargs"] == {"target": "steps", "target_hold_time": 2.0}
+    for old, new in zip(shipped.weights + shipped.biases, after.weights + after.biases, strict=True):
+        np.testing.assert_allclose(new, old, rtol=1e-6, atol=1e-7)  # learning rate 0: the same actor
+    np.testing.assert_allclose(after.observation_mean, shipped.observation_mean, rtol=1e-2, atol=1e-3)
+    with pytest.raises(ValueError, match="only PPO"):
+        training.train("balance_follow", algo="sac", init="ppo:balance_follow")
+    with pytest.raises(ValueError, match="valid: jump"):
+        training.train("balance_follow", task_kwargs={"target": "zigzag"})

@@ -1,5 +1,5 @@
 """Controllers derived from the Qube model, by name: balance (LQR), swingup, dampen, follow,
-rotor (energy shaping with LQRs) and mpc (sampling MPC). Each estimates the state from the
+rotor (energy shaping with LQRs), mpc (sampling MPC) and ilqr (iLQR MPC). Each estimates the state from the
 observed angles with a model-based observer, predicted over the domain's latency.
 
     from qube_suite import baselines
@@ -16,6 +16,7 @@ from qube_suite.arguments import check_keywords, is_number, keywords_of
 from qube_suite.baselines.base import Controller, split_observation
 from qube_suite.baselines.dampen import Dampen
 from qube_suite.baselines.follow import Follow
+from qube_suite.baselines.ilqr import IterativeLQR
 from qube_suite.baselines.lqr import BalanceLQR, lqr_gain
 from qube_suite.baselines.mpc import SamplingMPC
 from qube_suite.baselines.rotor import Rotor
@@ -23,7 +24,7 @@ from qube_suite.baselines.swingup import SwingUp
 from qube_suite.domains.qube import check_control_frequency
 
 CONTROLLERS: dict[str, type[Controller]] = {
-    cls.name: cls for cls in (BalanceLQR, SwingUp, Dampen, Follow, Rotor, SamplingMPC)}
+    cls.name: cls for cls in (BalanceLQR, SwingUp, Dampen, Follow, Rotor, SamplingMPC, IterativeLQR)}
 """Controller name -> class."""
 
 
@@ -55,5 +56,5 @@ def for_environment(name: str, environment, **kwargs) -> Controller:
     return make(name, **{**settings, **kwargs})
 
 
-__all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "Dampen", "Follow", "Rotor", "SamplingMPC", "SwingUp",
-           "for_environment", "lqr_gain", "make", "split_observation"]
+__all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "Dampen", "Follow", "IterativeLQR", "Rotor",
+           "SamplingMPC", "SwingUp", "for_environment", "lqr_gain", "make", "split_observation"]

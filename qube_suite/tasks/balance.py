@@ -62,8 +62,11 @@ class Balance(GoalTask):
 class BalanceFollow(Balance):
     """Balance while the arm follows a moving target.
 
-    As `Balance`, with the arm's goal theta_target ~ U(-80, 80) degrees, redrawn
-    at random moments (about twice a second) and at every reset.
+    As `Balance`, with the arm's goal theta_target following a schedule (`target`):
+    by default ("jump") theta_target ~ U(-80, 80) degrees, redrawn at random
+    moments (about twice a second) and at every reset, as in the original
+    toolkit, which nothing follows closely; "steps", "sine", "fixed" or a file
+    make the task a tracking benchmark.
 
     ## Observation
     `state` as `Balance`, plus `target` = [theta_target] (rad, within +-80 degrees);
@@ -79,7 +82,26 @@ class BalanceFollow(Balance):
     As `Balance`: the arm's +-90 degree limit is absolute, not relative to the target.
 
     ## Arguments
-    `sparse`, `voltage_limit`, `observation`, `random`.
+    `sparse`, `voltage_limit`, `observation`, `random`, and the target schedule
+    (`qube_suite.tasks.follow`; angles in rad):
+
+    | `target` | theta_target | keywords (defaults) |
+    |---|---|---|
+    | "jump" (default) | U(-A, A), redrawn after exponential times of mean H | A, H (80 deg, 0.5 s) |
+    | "steps" | U(-A, A), redrawn every H | A, H (60 deg, 2 s) |
+    | "sine" | A sin(2 pi f t) | A, f (45 deg, 0.2 Hz) |
+    | "fixed" | a constant | `target_angle` (0) |
+    | a CSV file's path | piecewise constant: rows `time,target` (s, rad) | none |
+
+    A = `target_amplitude`, H = `target_hold_time`, f = `target_frequency`.
+
+    Random schedules draw from the task's random state. A keyword the schedule
+    does not take, an amplitude beyond 80 degrees or a malformed file is a
+    ValueError. The sparse variant follows the same schedule.
+
+    ## Version history
+    v0: first release; the target schedule keywords were added later in v0, with
+    "jump" (the first release's targets, draw for draw) the default.
     """
 
     follows_target = True

@@ -1,48 +1,285 @@
-"""The moving arm target of the follow tasks."""
+"""The arm target of the follow tasks: its schedules, chosen by task keywords.
+
+| `target` | the arm's goal theta_target (rad) | keywords (defaults) |
+|---|---|---|
+| "jump" | U(-A, A), redrawn at exponentially distributed moments | A (80 deg), H (mean, 0.5 s) |
+| "steps" | U(-A, A), redrawn every hold time H | A (60 deg), H (2 s) |
+| "sine" | A sin(2 pi f t) | A (45 deg), f (0.2 Hz) |
+| "fixed" | a constant angle | `target_angle` (0) |
+| a file path | piecewise constant, from a CSV file (`read_target_file`) | none |
+
+A = `target_amplitude` (rad), H = `target_hold_time` (s), f = `target_frequency` (Hz).
+
+"jump" is the original toolkit's schedule, which nothing follows closely; the
+others make the follow tasks a tracking benchmark. Random schedules draw from the
+random state they are given (the task's), at every reset and at every redraw, so a
+seeded task replays the same targets. Targets stay within +-80 degrees, short of
+the arm's +-90 degree limit. For one Qube (`worlds=None`) `value` is a float (rad);
+for a batch of `worlds` Qubes it is an array with one target per world, each world
+drawing from its own random state and following its own episode time.
+"""
 
 from __future__ import annotations
 
+import csv
 import math
+import os
+import pathlib
+from typing import Any
 
 import numpy as np
 
 TARGET_LIMIT = math.radians(80.0)
-"""Targets are drawn uniformly from +-80 degrees."""
+"""Every schedule keeps its targets within +-80 degrees."""
 
 MEAN_HOLD_TIME = 0.5
-"""Mean time (s) between redraws: a Poisson process, about twice a second."""
+"""Mean time (s) between the "jump" schedule's redraws: about twice a second."""
+
+SCHEDULES = ("jump", "steps", "sine", "fixed")
+"""Named schedules; `target` may also be the path of a CSV file."""
+
+SCHEDULE_KEYWORDS = ("target", "target_amplitude", "target_hold_time", "target_frequency", "target_angle")
+"""The follow tasks' keywords choosing and shaping the schedule."""
+
+_TIME_TOLERANCE = 1e-9
+"""Slack (s) for comparing the episode's time with a scheduled change."""
 
 
-class TargetProcess:
-    """theta_target ~ U(-80, 80) degrees, redrawn at exponentially distributed moments.
-
-    Draws from the random state it is given (the task's), so a seeded task replays
-    the same targets. For one Qube (`worlds=None`) `value` is a float (rad); for a
-    batch of `worlds` Qubes it is an array with one target per world, each world
-    drawing from its own random state.
-    """
+class TargetSchedule:
+    """Base of the schedules: `value` (rad, one per world in a batch), set by `reset` and `update`."""
 
     def __init__(self, worlds: int | None = None):
+        self.worlds = worlds
         self.value = 0.0 if worlds is None else np.zeros(worlds)
-        self._next_draw = 0.0 if worlds is None else np.zeros(worlds)
+
+    def batch(self, worlds: int) -> TargetSchedule:
+        """The same schedule for a batch of `worlds` Qubes."""
+        raise NotImplementedError
 
     def reset(self, time: float, random: np.random.RandomState, world: int | None = None) -> None:
-        """Draw a fresh target at `time` (s), the start of an episode (of `world` in a batch)."""
-        value = random.uniform(-TARGET_LIMIT, TARGET_LIMIT)
-        next_draw = time + random.exponential(MEAN_HOLD_TIME)
-        if world is None:
-            self.value, self._next_draw = value, next_draw
-        else:
-            self.value[world], self._next_draw[world] = value, next_draw
+        """Start the schedule at `time` (s), the start of an episode (of `world` in a batch)."""
+        raise NotImplementedError
 
     def update(self, time, random) -> None:
-        """Redraw the targets whose moment has passed by `time` (s, or one per world).
+        """Advance to `time` (s, or one per world). `random`: the random state, or in a batch the
+        sequence of per-world ones."""
+        raise NotImplementedError
 
-        `random`: the random state, or in a batch the sequence of per-world ones.
-        """
+
+class RandomTargets(TargetSchedule):
+    """theta_target ~ U(-amplitude, amplitude), redrawn at moments drawn by `_next_change`."""
+
+    def __init__(self, amplitude: float, hold_time: float, worlds: int | None = None):
+        super().__init__(worlds)
+        self.amplitude, self.hold_time = amplitude, hold_time
+        self._next_change = 0.0 if worlds is None else np.zeros(worlds)
+
+    def batch(self, worlds: int) -> RandomTargets:
+        return type(self)(self.amplitude, self.hold_time, worlds)
+
+    @staticmethod
+    def _due(time, next_change):
+        """Whether the target is to be redrawn at `time` (s, float or array)."""
+        raise NotImplementedError
+
+    def _change_after(self, due: float, time: float, random: np.random.RandomState) -> float:
+        """When (s) the target drawn at `time`, which was due at `due`, changes next."""
+        raise NotImplementedError
+
+    def _draw(self, due: float, time: float, random: np.random.RandomState, world: int | None) -> None:
+        value = random.uniform(-self.amplitude, self.amplitude)
+        next_change = self._change_after(due, time, random)
+        if world is None:
+            self.value, self._next_change = value, next_change
+        else:
+            self.value[world], self._next_change[world] = value, next_change
+
+    def reset(self, time: float, random: np.random.RandomState, world: int | None = None) -> None:
+        self._draw(time, time, random, world)
+
+    def update(self, time, random) -> None:
         if not isinstance(time, np.ndarray):
-            if time > self._next_draw:
-                self.reset(time, random)
+            if self._due(time, self._next_change):
+                self._draw(self._next_change, time, random, None)
             return
-        for world in np.flatnonzero(time > self._next_draw).tolist():
-            self.reset(float(time[world]), random[world], world)
+        for world in np.flatnonzero(self._due(time, self._next_change)).tolist():
+            self._draw(float(self._next_change[world]), float(time[world]), random[world], world)
+
+
+class JumpTargets(RandomTargets):
+    """Redrawn at exponentially distributed moments, mean `hold_time` apart (a Poisson process)."""
+
+    @staticmethod
+    def _due(time, next_change):
+        return time > next_change
+
+    def _change_after(self, due: float, time: float, random: np.random.RandomState) -> float:
+        return time + random.exponential(self.hold_time)
+
+
+class StepTargets(RandomTargets):
+    """Redrawn every `hold_time` seconds exactly."""
+
+    @staticmethod
+    def _due(time, next_change):
+        return time >= next_change - _TIME_TOLERANCE
+
+    def _change_after(self, due: float, time: float, random: np.random.RandomState) -> float:
+        return due + self.hold_time
+
+
+class TimedTargets(TargetSchedule):
+    """A target that is a function of the episode's time only (`at`), drawing nothing."""
+
+    def reset(self, time: float, random: np.random.RandomState, world: int | None = None) -> None:
+        if world is None:
+            self.value = self.at(time)
+        else:
+            self.value[world] = self.at(time)
+
+    def update(self, time, random) -> None:
+        self.value = self.at(time)
+
+    def at(self, time):
+        """The target (rad) at `time` (s, float or array)."""
+        raise NotImplementedError
+
+
+class SineTarget(TimedTargets):
+    """amplitude sin(2 pi frequency t), t the episode's time."""
+
+    def __init__(self, amplitude: float, frequency: float, worlds: int | None = None):
+        super().__init__(worlds)
+        self.amplitude, self.frequency = amplitude, frequency
+
+    def batch(self, worlds: int) -> SineTarget:
+        return SineTarget(self.amplitude, self.frequency, worlds)
+
+    def at(self, time):
+        phase = 2.0 * math.pi * self.frequency * time
+        return self.amplitude * (np.sin(phase) if isinstance(time, np.ndarray) else math.sin(phase))
+
+
+class FixedTarget(TimedTargets):
+    """A constant `angle` (rad)."""
+
+    def __init__(self, angle: float, worlds: int | None = None):
+        super().__init__(worlds)
+        self.angle = angle
+
+    def batch(self, worlds: int) -> FixedTarget:
+        return FixedTarget(self.angle, worlds)
+
+    def at(self, time):
+        return np.full(np.shape(time), self.angle) if isinstance(time, np.ndarray) else self.angle
+
+
+class SequenceTargets(TimedTargets):
+    """Piecewise constant: `angles[i]` (rad) from `times[i]` (s) on, the last held to the episode's end."""
+
+    def __init__(self, times: np.ndarray, angles: np.ndarray, worlds: int | None = None):
+        super().__init__(worlds)
+        self.times, self.angles = times, angles
+
+    def batch(self, worlds: int) -> SequenceTargets:
+        return SequenceTargets(self.times, self.angles, worlds)
+
+    def at(self, time):
+        index = np.searchsorted(self.times, np.asarray(time) + _TIME_TOLERANCE, side="right") - 1
+        return self.angles[index] if isinstance(time, np.ndarray) else float(self.angles[index])
+
+
+def read_target_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """(times (s), angles (rad)) of a target sequence file.
+
+    Format: CSV with the header `time,target` and one row per change: the time (s)
+    from the episode's start at which the target (rad) takes effect. Times start at
+    0 and increase strictly; targets are finite and within +-80 degrees (1.396 rad).
+    Lines starting with `#` are comments. Raises ValueError naming the file and line.
+    """
+    path = pathlib.Path(path)
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise ValueError(f"target file {path}: cannot be read ({error.strerror or error})") from None
+    rows = [(number, line) for number, line in enumerate(text.splitlines(), start=1)
+            if line.strip() and not line.lstrip().startswith("#")]
+    if not rows or [cell.strip() for cell in rows[0][1].split(",")] != ["time", "target"]:
+        raise ValueError(f"target file {path}: the first line must be the header 'time,target'")
+    times, angles = [], []
+    for number, cells in zip((n for n, _ in rows[1:]), csv.reader(line for _, line in rows[1:]), strict=True):
+        try:
+            time, angle = (float(cell) for cell in cells)
+        except ValueError:
+            raise ValueError(f"target file {path}, line {number}: expected two numbers 'time,target', "
+                             f"got {','.join(cells)!r}") from None
+        if not (math.isfinite(time) and math.isfinite(angle)):
+            raise ValueError(f"target file {path}, line {number}: values must be finite")
+        if abs(angle) > TARGET_LIMIT:
+            raise ValueError(f"target file {path}, line {number}: target {angle} rad is beyond "
+                             f"+-{TARGET_LIMIT:.4f} rad (80 degrees)")
+        if (times and time <= times[-1]) or (not times and time != 0.0):
+            raise ValueError(f"target file {path}, line {number}: times must start at 0 and increase, "
+                             f"got {time}")
+        times.append(time)
+        angles.append(angle)
+    if not times:
+        raise ValueError(f"target file {path}: no rows after the header")
+    return np.array(times), np.array(angles)
+
+
+def _positive(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 < value < math.inf:
+        raise ValueError(f"{name} must be a positive number, got {value!r}")
+    return float(value)
+
+
+def _angle(name: str, value: Any, allow_zero: bool = True) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not abs(value) <= TARGET_LIMIT \
+            or (not allow_zero and value == 0.0):
+        bound = "(0, " if not allow_zero else "[-"
+        raise ValueError(f"{name} must be a number of radians in {bound}{TARGET_LIMIT:.4f}] "
+                         f"(80 degrees), got {value!r}")
+    return float(value)
+
+
+_APPLIES = {"jump": ("target_amplitude", "target_hold_time"),
+            "steps": ("target_amplitude", "target_hold_time"),
+            "sine": ("target_amplitude", "target_frequency"),
+            "fixed": ("target_angle",)}
+"""Which shaping keywords each named schedule takes."""
+
+
+def make_schedule(target: str | os.PathLike = "jump", target_amplitude: float | None = None,
+                  target_hold_time: float | None = None, target_frequency: float | None = None,
+                  target_angle: float | None = None) -> TargetSchedule:
+    """The schedule `target` names (see the module's table), shaped by the keywords it takes.
+
+    Raises ValueError for an unknown schedule (listing the valid ones), a missing or
+    malformed file, a keyword the schedule does not take or a value out of range.
+    """
+    given = {"target_amplitude": target_amplitude, "target_hold_time": target_hold_time,
+             "target_frequency": target_frequency, "target_angle": target_angle}
+    given = {key: value for key, value in given.items() if value is not None}
+    if isinstance(target, str) and target in SCHEDULES:
+        extra = sorted(set(given) - set(_APPLIES[target]))
+        if extra:
+            raise ValueError(f"target={target!r} does not take {', '.join(extra)}; it takes "
+                             f"{', '.join(_APPLIES[target])}")
+    elif isinstance(target, (str, os.PathLike)) and (pathlib.Path(target).suffix == ".csv"
+                                                     or pathlib.Path(target).exists()):
+        if given:
+            raise ValueError(f"a target file takes no other target keywords, got {', '.join(sorted(given))}")
+        return SequenceTargets(*read_target_file(target))
+    else:
+        raise ValueError(f"unknown target schedule {target!r}; valid: {', '.join(SCHEDULES)}, "
+                         "or the path of a CSV file with the header 'time,target'")
+    if target == "fixed":
+        return FixedTarget(_angle("target_angle", given.get("target_angle", 0.0)))
+    default = {"jump": TARGET_LIMIT, "steps": math.radians(60.0), "sine": math.radians(45.0)}[target]
+    amplitude = _angle("target_amplitude", given.get("target_amplitude", default), allow_zero=False)
+    if target == "sine":
+        return SineTarget(amplitude, _positive("target_frequency", given.get("target_frequency", 0.2)))
+    default_hold = MEAN_HOLD_TIME if target == "jump" else 2.0
+    hold_time = _positive("target_hold_time", given.get("target_hold_time", default_hold))
+    return JumpTargets(amplitude, hold_time) if target == "jump" else StepTargets(amplitude, hold_time)

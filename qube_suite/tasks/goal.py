@@ -9,7 +9,7 @@ from dm_env import specs
 
 from qube_suite.tasks import rewards
 from qube_suite.tasks.base import QubeTask
-from qube_suite.tasks.follow import TARGET_LIMIT, TargetProcess
+from qube_suite.tasks.follow import TARGET_LIMIT, make_schedule
 
 
 class GoalTask(QubeTask):
@@ -22,20 +22,32 @@ class GoalTask(QubeTask):
     Args:
         sparse: reward 1 inside the goal set (pendulum within 10 degrees, arm within
             20 degrees of their goals), else 0; dense shaping otherwise.
+        target, target_amplitude, target_hold_time, target_frequency, target_angle:
+            the follow variants' target schedule (`qube_suite.tasks.follow.make_schedule`);
+            the other tasks take none of them.
         **kwargs: see `QubeTask`.
     """
 
     follows_target = False
 
-    def __init__(self, sparse: bool = False, **kwargs):
+    def __init__(self, sparse: bool = False, target="jump", target_amplitude: float | None = None,
+                 target_hold_time: float | None = None, target_frequency: float | None = None,
+                 target_angle: float | None = None, **kwargs):
+        schedule = {"target_amplitude": target_amplitude, "target_hold_time": target_hold_time,
+                    "target_frequency": target_frequency, "target_angle": target_angle}
+        if not self.follows_target:
+            chosen = {"target": None if target == "jump" else target, **schedule}
+            given = [key for key, value in chosen.items() if value is not None]
+            if given:
+                raise ValueError(f"{', '.join(given)}: only the follow tasks have a target schedule")
         super().__init__(**kwargs)
         self._sparse = bool(sparse)
-        self._target = TargetProcess() if self.follows_target else None
+        self._target = make_schedule(target, **schedule) if self.follows_target else None
 
     def use_batch(self, randoms) -> None:
         super().use_batch(randoms)
         if self._target is not None:
-            self._target = TargetProcess(len(self._random))
+            self._target = self._target.batch(len(self._random))
 
     @property
     def sparse(self) -> bool:

@@ -66,7 +66,7 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
           domain_kwargs: dict[str, Any] | None = None, evaluations: int = 20, eval_episodes: int = 8,
           checkpoints: int = 10, progress: bool = True, hyperparameters: dict[str, Any] | None = None,
           init: str | pathlib.Path | None = None, exploring_starts: float | None = None,
-          resume: bool = False) -> TrainingResult:
+          resume: bool = False, task_kwargs: dict[str, Any] | None = None) -> TrainingResult:
     """Train `algo` ("ppo" or "sac") on `task` for `steps` environment steps and export the policy.
 
     PPO rounds `steps` up to whole rollouts (n_steps x num_envs).
@@ -82,6 +82,8 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         checkpoints: save the model this many times during training.
         progress: show progress on stderr (a bar on a terminal, a line per 10 % otherwise).
         hyperparameters: overrides of `HYPERPARAMETERS[algo]`.
+        task_kwargs: task settings for training and evaluation, e.g. a follow task's
+            target schedule (`{"target": "steps"}`); as `suite.load`, without `random`.
         init: directory of a previous run of `algo` on a task with the same
             observation layout, or the same without the follow target or without
             history; training starts from its `model.zip` and `vecnormalize.pkl`
@@ -104,22 +106,29 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         randomization_configs.load(randomization)  # a bad config fails here, before any environment
     if exploring_starts is not None and not 0.0 <= exploring_starts <= 1.0:
         raise ValueError(f"exploring_starts must be a fraction in [0, 1], got {exploring_starts!r}")
+    task_kwargs = dict(task_kwargs or {})
+    if "random" in task_kwargs:
+        raise ValueError("task_kwargs: training seeds the environments itself (seed=); drop 'random'")
+    suite.make_task(domain, task, task_kwargs)  # bad task settings fail here, before any environment
     if init is not None and not pathlib.Path(init).is_dir() and policies.names_a_policy(init):
+        if algo != "ppo":
+            raise ValueError("init: only PPO runs start from a PPO policy file; give SAC a run directory")
         init = policies.load_policy(init)
     elif init is not None:
         init = pathlib.Path(init)
         missing = [name for name in ("model.zip", "vecnormalize.pkl") if not (init / name).is_file()]
         if missing:
-            raise ValueError(f"init: {init} is not a finished training run (no {', '.join(missing)})")
+            raise ValueError(f"init: {init} is not a finished training run (no {', '.join(missing)}) "
+                             "nor a policy file")
     require_rl()
     return _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
                   eval_episodes, checkpoints, progress, {**HYPERPARAMETERS[algo], **(hyperparameters or {})},
-                  init, exploring_starts, resume)
+                  init, exploring_starts, resume, task_kwargs)
 
 
 def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
            eval_episodes, checkpoints, progress, hyperparameters, init, exploring_starts,
-           resume) -> TrainingResult:
+           resume, task_kwargs) -> TrainingResult:
     import stable_baselines3
     import torch
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
@@ -140,7 +149,8 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     history = settings.pop("history", 0)
     if algo == "ppo":  # minibatches no larger than a rollout
         settings["batch_size"] = min(settings["batch_size"], settings["n_steps"] * num_envs)
-    env_kwargs = {"domain": domain, "randomization": randomization, "domain_kwargs": domain_kwargs}
+    env_kwargs = {"domain": domain, "randomization": randomization, "domain_kwargs": domain_kwargs,
+                  "task_kwargs": task_kwargs}
     if exploring_starts is None:
         exploring_starts = EXPLORING_STARTS.get(task, 0.0)
     starts = exploring_starts if domain == "qube" else 0.0
@@ -175,7 +185,7 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     model.set_logger(configure(str(out), ["csv", "tensorboard"]))
     source = None if init is None else str(init) if isinstance(init, pathlib.Path) else init.name
     record = {"algo": algo, "task": task, "domain": domain, "randomization": _describe(randomization),
-              "domain_kwargs": domain_kwargs, "seed": seed, "num_envs": num_envs,
+              "domain_kwargs": domain_kwargs, "task_kwargs": task_kwargs, "seed": seed, "num_envs": num_envs,
               "init": source, "exploring_starts": starts, "resumed_from_steps": resumed,
               "hyperparameters": hyperparameters, "stable_baselines3": stable_baselines3.__version__}
     start = time.perf_counter()

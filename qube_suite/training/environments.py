@@ -83,17 +83,21 @@ def _single(env_id: str, **kwargs: Any):
 
 
 def raw_vec_env(task: str, num_envs: int, seed: int, domain: str = "qube", randomization: Any = None,
-                domain_kwargs: dict[str, Any] | None = None) -> VecEnv:
+                domain_kwargs: dict[str, Any] | None = None,
+                task_kwargs: dict[str, Any] | None = None) -> VecEnv:
     """`num_envs` environments of `task` on `domain` with the standard observation, seeded
-    `seed`, `seed + 1`, ... at their first reset."""
+    `seed`, `seed + 1`, ... at their first reset; `task_kwargs` (e.g. a follow task's target
+    schedule) as in `suite.load`."""
     env_id = gymnasium_id(task, domain)
+    task_kwargs = dict(task_kwargs or {})
     if domain == "qube" and not domain_kwargs:
-        venv = make_sb3_vec_env(env_id, num_envs=num_envs, threads=1, randomization=randomization)
+        venv = make_sb3_vec_env(env_id, num_envs=num_envs, threads=1, randomization=randomization,
+                                **task_kwargs)
     elif domain == "qube":
-        venv = DummyVecEnv([_single(env_id, randomization=randomization, domain_kwargs=domain_kwargs)
-                            for _ in range(num_envs)])
+        venv = DummyVecEnv([_single(env_id, randomization=randomization, domain_kwargs=domain_kwargs,
+                                    **task_kwargs) for _ in range(num_envs)])
     else:
-        boards = [_single(env_id, randomization=randomization, domain_kwargs=domain_kwargs)
+        boards = [_single(env_id, randomization=randomization, domain_kwargs=domain_kwargs, **task_kwargs)
                   for _ in range(num_envs)]
         venv = SubprocVecEnv(boards) if num_envs > 1 else DummyVecEnv(boards)
     venv.seed(seed)

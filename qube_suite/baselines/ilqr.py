@@ -1,0 +1,234 @@
+"""iLQR: receding-horizon optimal control of the Qube on its closed-form model.
+
+Model: x = [theta, alpha, dtheta, dalpha], u = motor voltage; the rigid-body
+equations of `qube_suite.baselines.model` stepped with RK4 over one control
+period h. Derivatives: the continuous-time Jacobian of those equations in closed
+form, chained through the four RK4 stages, so A = dx'/dx and B = dx'/du are
+exact for the discrete model (`benchmarks/ilqr.py` compares them with MuJoCo's
+`mjd_transitionFD` for accuracy and cost).
+
+Cost of a plan of N knots, the arm reference r_n with speed r'_n:
+
+    sum_n h l(x_n, u_n) + w_N l(x_N, 0),
+    l = q_alpha (1 - cos alpha) + q_theta (theta - r)^2 + q_dtheta (dtheta - r')^2
+        + q_dalpha dalpha^2 + q_u u^2 + q_limit max(0, |theta| - theta_limit)^2
+
+with |u| <= the voltage limit.
+
+One iteration (Li and Todorov 2004; Tassa, Mansard and Todorov 2014 for the
+control limits and the regularisation): roll the plan out from the current
+state with its own feedback gains; linearise along it; backward pass for the
+feed-forward k_n and gains K_n, where a voltage that would leave the limits is
+clamped and its gain set to 0 (the box QP of one input); forward line search
+over k's step size, keeping the new plan only if its cost is lower. The
+regularisation mu added to Q_uu grows when the backward pass or the line search
+fails and shrinks after a success; at its largest value a failed backward pass
+leaves the plan as it is for this step.
+
+The compiled kernel (`_ilqr.pyx`) runs these iterations; this module holds the
+controller and a numpy transcription of one iteration (`reference_iteration`),
+which documents the steps and against which the tests check the kernel.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from qube_suite.angles import wrap_angle
+from qube_suite.baselines._ilqr import Kernel
+from qube_suite.baselines.base import Controller
+from qube_suite.baselines.follow import REFERENCE_LIMIT, TARGET_JUMP_SPEED
+from qube_suite.baselines.lqr import BalanceLQR
+from qube_suite.baselines.model import RigidBodyModel
+from qube_suite.baselines.swingup import CATCH_VOLTAGE
+from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
+
+DIAGONAL = (np.arange(4), np.arange(4))
+
+MAX_REGULARIZATION = 10.0
+"""Largest mu (the kernel's too): beyond it a step would only be shorter."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Cost:
+    """Weights of the cost (see the module); angles in rad, speeds in rad/s, voltage in V."""
+
+    pendulum: float = 40.0
+    """q_alpha on 1 - cos alpha (about q_alpha / 2 alpha^2 near upright)."""
+    arm: float = 20.0
+    """q_theta on (theta - r)^2: stiff enough to follow 2 s steps to 0.1 rad (0.1 rad at 5)."""
+    arm_speed: float = 0.05
+    """q_dtheta on (dtheta - r')^2."""
+    pendulum_speed: float = 0.2
+    """q_dalpha on dalpha^2."""
+    voltage: float = 0.05
+    """q_u on u^2."""
+    arm_limit: float = math.radians(75.0)
+    """theta_limit: the arm pays beyond this angle ..."""
+    limit_weight: float = 1000.0
+    """... q_limit times the square of the excess."""
+    terminal: float = 1.0
+    """w_N: weight of the last knot's cost, in seconds of running cost."""
+
+
+class IterativeLQR(Controller):
+    """Receding-horizon iLQR from the estimated state, warm-started from the last plan each step.
+
+    Every call moves the plan one control period on (the first voltage was sent),
+    does `iterations` iLQR iterations from the observer's estimate (predicted
+    over the latency) and sends the plan's first voltage. The arm reference is the
+    target within +-60 degrees, extrapolated over the horizon with the target's
+    speed (estimated as in `Follow`).
+
+    Args:
+        control_frequency, voltage_limit, parameters, latency_steps: as `Controller`.
+        horizon: planning horizon (s); the knots are one control period apart.
+        iterations: iLQR iterations per control step.
+        cost: the cost's weights.
+    """
+
+    name = "ilqr"
+    tasks = ("swingup", "swingup_sparse", "swingup_follow", "swingup_follow_sparse",
+             "balance", "balance_sparse", "balance_follow", "balance_follow_sparse")
+
+    def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
+                 parameters: Mapping[str, float] | None = None, latency_steps: int = 0,
+                 horizon: float = 0.8, iterations: int = 1, cost: Cost | None = None):
+        super().__init__(control_frequency, voltage_limit, parameters, latency_steps)
+        if not (isinstance(iterations, int) and iterations >= 1):
+            raise ValueError(f"iterations must be a positive integer, got {iterations!r}")
+        if not (isinstance(horizon, (int, float)) and horizon * control_frequency >= 2):
+            raise ValueError(f"horizon must cover at least two control periods, got {horizon!r} s")
+        self.cost = cost or Cost()
+        self.control_frequency = control_frequency
+        self.iterations = iterations
+        self.balance = BalanceLQR(control_frequency, voltage_limit, parameters)
+        knots = round(horizon * control_frequency)
+        self.kernel = Kernel(self.model, self.cost, knots, 1.0 / control_frequency, voltage_limit)
+        self._times = np.arange(self.kernel.knots + 1) / control_frequency
+        self.reset()
+
+    def reset(self) -> None:
+        super().reset()
+        self.kernel.U[:] = 0.0
+        self.kernel.K[:] = 0.0
+        self.kernel.X[:] = 0.0
+        self.kernel.regularization = 0.0
+        self._started = False
+        self._last_target: float | None = None
+
+    def voltage_for(self, state: np.ndarray, target: float = 0.0) -> float:
+        """Voltage (V) for `state` [theta, alpha, dtheta, dalpha] with the arm's target at `target` (rad)."""
+        speed = 0.0
+        if self._last_target is not None:
+            speed = (target - self._last_target) * self.control_frequency
+            speed = speed if abs(speed) < TARGET_JUMP_SPEED else 0.0
+        self._last_target = target
+        kernel = self.kernel
+        state = np.array(state, dtype=np.float64)
+        if self._started:
+            kernel.shift(1)
+            # alpha as the plan counts it (it may have gone round): the gains act on a small difference
+            state[1] = kernel.X[0, 1] + wrap_angle(state[1] - kernel.X[0, 1])
+        else:
+            self._first_plan(state, target)
+        reference = np.clip(target + speed * self._times, -REFERENCE_LIMIT, REFERENCE_LIMIT)
+        reference_speed = np.where(np.abs(reference) < REFERENCE_LIMIT, speed, 0.0)
+        for _ in range(self.iterations):
+            kernel.iterate(state, reference, reference_speed)
+        return float(kernel.U[0])
+
+
+    def _first_plan(self, state: np.ndarray, target: float) -> None:
+        """The plan to start from. Near upright (inside the balance LQR's catch ellipsoid): the LQR's
+        closed loop about the target; one iteration from 0 V alone would drop a pendulum that starts
+        balanced. Elsewhere: a swing of half the voltage limit at the pendulum's natural frequency; at
+        rest hanging, 0 V is a stationary point of the cost, where iLQR would stay."""
+        kernel = self.kernel
+        set_point = min(max(target, -REFERENCE_LIMIT), REFERENCE_LIMIT)
+        if self.balance.cost_to_go(state, set_point) < self.balance.level_for_voltage(CATCH_VOLTAGE):
+            kernel.U[:] = 0.0
+            kernel.X[:] = [set_point, 0.0, 0.0, 0.0]
+            kernel.K[:] = -self.balance.gain
+        else:
+            natural_frequency = math.sqrt(self.model.gravity_torque / self.model.pendulum_inertia)
+            kernel.U[:] = 0.5 * self.voltage_limit * np.sin(natural_frequency * self._times[:-1])
+            kernel.X[:] = state
+            kernel.K[:] = 0.0
+        self._started = True
+
+
+def reference_iteration(model: RigidBodyModel, cost: Cost, h: float, voltage_limit: float, x0: np.ndarray,
+                        U: np.ndarray, X: np.ndarray, K: np.ndarray, reference: np.ndarray,
+                        reference_speed: np.ndarray, regularization: float, kernel: Kernel,
+                        line_search: int = 6) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, float]:
+    """One iteration in numpy, as the kernel does it: (cost, U, X, K, regularization) after it.
+
+    `kernel` provides only the RK4 step and its Jacobian (`Kernel.step`), the part the tests check
+    against finite differences separately.
+    """
+    N = len(U)
+
+    def stage(x, u, r, rd, scale):
+        e, ed, over = x[0] - r, x[2] - rd, abs(x[0]) - cost.arm_limit
+        value = (cost.pendulum * (1 - math.cos(x[1])) + cost.arm * e * e + cost.arm_speed * ed * ed
+                 + cost.pendulum_speed * x[3] ** 2 + cost.voltage * u * u)
+        lx = np.array([2 * cost.arm * e, cost.pendulum * math.sin(x[1]), 2 * cost.arm_speed * ed,
+                       2 * cost.pendulum_speed * x[3]])
+        lxx = np.zeros((4, 4))
+        lxx[DIAGONAL] = (2 * cost.arm, cost.pendulum * math.cos(x[1]), 2 * cost.arm_speed,
+                         2 * cost.pendulum_speed)
+        if over > 0:
+            value += cost.limit_weight * over * over
+            lx[0] += 2 * cost.limit_weight * over * math.copysign(1.0, x[0])
+            lxx[0, 0] += 2 * cost.limit_weight
+        return scale * value, scale * lx, scale * lxx, scale * 2 * cost.voltage * u, scale * 2 * cost.voltage
+
+    def rollout(Xref, Uref, k, K, step_size):
+        Xn, Un, total = np.zeros((N + 1, 4)), np.zeros(N), 0.0
+        Xn[0] = x0
+        for n in range(N):
+            u = min(max(Uref[n] + step_size * k[n] + K[n] @ (Xn[n] - Xref[n]), -voltage_limit), voltage_limit)
+            Un[n] = u
+            total += stage(Xn[n], u, reference[n], reference_speed[n], h)[0]
+            Xn[n + 1] = kernel.step(Xn[n], u, h)[0]
+        return total + stage(Xn[N], 0.0, reference[N], reference_speed[N], cost.terminal)[0], Xn, Un
+
+    current, X, U = rollout(X, U, np.zeros(N), K, 0.0)
+    jacobians = [kernel.step(X[n], U[n], h)[1] for n in range(N)]
+    k, K = np.zeros(N), np.zeros((N, 4))
+    while True:
+        _, Vx, Vxx, _, _ = stage(X[N], 0.0, reference[N], reference_speed[N], cost.terminal)
+        for n in range(N - 1, -1, -1):
+            _, lx, lxx, lu, luu = stage(X[n], U[n], reference[n], reference_speed[n], h)
+            A, B = jacobians[n][:, :4], jacobians[n][:, 4]
+            Qu, Quu = lu + B @ Vx, luu + B @ Vxx @ B + regularization
+            if Quu <= 1e-12:
+                break
+            Qx, Qux, Qxx = lx + A.T @ Vx, B @ Vxx @ A, lxx + A.T @ Vxx @ A
+            kk = -Qu / Quu
+            if abs(U[n] + kk) > voltage_limit:
+                kk = min(max(U[n] + kk, -voltage_limit), voltage_limit) - U[n]
+            else:
+                K[n] = -Qux / Quu
+            k[n] = kk
+            Vx = Qx + K[n] * (Quu * kk + Qu) + Qux * kk
+            Vxx = Qxx + Quu * np.outer(K[n], K[n]) + np.outer(K[n], Qux) + np.outer(Qux, K[n])
+            Vxx = 0.5 * (Vxx + Vxx.T)
+        else:
+            break
+        if regularization >= MAX_REGULARIZATION:
+            return current, U, X, K, regularization  # Q_uu stays negative: keep the plan
+        regularization = min(max(2 * regularization, 1e-4), MAX_REGULARIZATION)
+        K[:] = 0.0
+    step_size = 1.0
+    for _ in range(line_search):
+        new, Xn, Un = rollout(X, U, k, K, step_size)
+        if new < current:
+            return new, Un, Xn, K, (0.5 * regularization if regularization > 1e-6 else 0.0)
+        step_size *= 0.5
+    return current, U, X, K, min(max(4 * regularization, 1e-3), MAX_REGULARIZATION)

@@ -1,0 +1,121 @@
+"""iLQR: the kernel's model and derivatives, its iteration against the numpy transcription, the MPC."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from qube_suite import baselines, cli
+from qube_suite.baselines.ilqr import Cost, IterativeLQR, reference_iteration
+from qube_suite.baselines.model import RigidBodyModel
+from qube_suite.domains import qube
+from qube_suite.evaluation import evaluate
+
+H = 1 / 250
+
+
+@pytest.fixture(scope="module")
+def controller():
+    return IterativeLQR()
+
+
+def states(count, seed=0):
+    random = np.random.default_rng(seed)
+    return np.column_stack([random.uniform(-1.5, 1.5, count), random.uniform(-math.pi, math.pi, count),
+                            random.uniform(-8, 8, count), random.uniform(-20, 20, count)])
+
+
+def test_kernel_step_is_the_simulators_step(controller):
+    """One RK4 step of the closed-form model over a control period is MuJoCo's step of qube.xml."""
+    physics = qube.make_physics(250.0)
+    random = np.random.default_rng(1)
+    for state in states(20):
+        volts = random.uniform(-3, 3)
+        physics.reset_to(state)
+        physics.set_voltage(volts)
+        physics.step(qube.substeps_per_control_period(250.0))
+        simulated = np.concatenate([physics.data.qpos, physics.data.qvel])
+        stepped = controller.kernel.step(state, volts, H)[0]
+        np.testing.assert_allclose(stepped, simulated, rtol=1e-6, atol=1e-8)
+
+
+def test_kernel_jacobians_are_the_derivatives_of_its_step(controller):
+    epsilon = 1e-6
+    for state in states(20, seed=2):
+        volts = 1.3
+        _, jacobian = controller.kernel.step(state, volts, H)
+        numeric = np.empty((4, 5))
+        for i in range(5):
+            d = np.zeros(5)
+            d[i] = epsilon
+            plus = controller.kernel.step(state + d[:4], volts + d[4], H)[0]
+            minus = controller.kernel.step(state - d[:4], volts - d[4], H)[0]
+            numeric[:, i] = (plus - minus) / (2 * epsilon)
+        np.testing.assert_allclose(jacobian, numeric, rtol=1e-6, atol=1e-8)
+
+
+def test_kernel_iterations_equal_the_numpy_transcription():
+    controller = IterativeLQR(horizon=0.2)
+    kernel = controller.kernel
+    knots = kernel.knots
+    x0 = np.array([0.2, 2.5, 0.5, -3.0])
+    reference, speed = np.full(knots + 1, 0.3), np.full(knots + 1, 0.1)
+    U, X, K, mu = 0.5 * np.sin(np.arange(knots) * 0.1), np.zeros((knots + 1, 4)), np.zeros((knots, 4)), 0.0
+    kernel.U[:], kernel.X[:], kernel.K[:] = U, X, K
+    costs = []
+    for _ in range(5):
+        cost, U, X, K, mu = reference_iteration(controller.model, controller.cost, H, 3.0, x0, U, X, K,
+                                                reference, speed, mu, kernel)
+        assert kernel.iterate(x0, reference, speed) == pytest.approx(cost, rel=1e-9)
+        np.testing.assert_allclose(kernel.U, U, atol=1e-9)
+        np.testing.assert_allclose(kernel.X, X, atol=1e-9)
+        np.testing.assert_allclose(kernel.K, K, rtol=1e-7, atol=1e-9)
+        assert kernel.regularization == pytest.approx(mu)
+        costs.append(cost)
+    assert costs[-1] < costs[0]  # the iterations lower the cost
+    assert np.all(np.abs(kernel.U) <= 3.0)  # within the voltage limit
+
+
+def test_iterations_converge_to_a_plan_that_meets_the_limits():
+    controller = IterativeLQR(horizon=1.2, voltage_limit=3.0)
+    x0 = np.array([0.0, math.pi - 0.05, 0.0, 0.0])
+    controller.reset()
+    controller.voltage_for(x0)  # the first plan
+    for _ in range(60):
+        cost = controller.kernel.iterate(x0, 0.0, 0.0)
+    assert np.max(np.abs(controller.kernel.U)) <= 3.0 + 1e-12
+    assert np.max(np.abs(controller.kernel.X[:, 0])) < math.radians(90)
+    # the plan pumps the pendulum: within 1.2 s the pendulum rises well above horizontal
+    assert np.min(np.abs(np.cos(controller.kernel.X[:, 1]) - 1)) < 1.0 and math.isfinite(cost)
+
+
+def test_bad_settings_are_refused():
+    with pytest.raises(ValueError, match="iterations"):
+        baselines.make("ilqr", iterations=0)
+    with pytest.raises(ValueError, match="horizon"):
+        baselines.make("ilqr", horizon=0.001)
+    assert baselines.make("ilqr", horizon=0.4, cost=Cost(arm=10.0)).kernel.knots == 100
+
+
+@pytest.mark.parametrize("domain", ["qube", "qube_hardware"])
+def test_ilqr_swings_up_and_balances_on_both_domains(domain):
+    result = evaluate("ilqr", domain=domain, task="swingup", episodes=2, seed=0)
+    assert result.success_rate == 1.0 and result.mean_return > 1750
+    balance = evaluate("ilqr", domain=domain, task="balance", episodes=2, seed=0)
+    assert balance.success_rate == 1.0 and balance.mean_return > 2000
+
+
+@pytest.mark.parametrize("domain", ["qube", "qube_hardware"])
+def test_cli_evaluates_ilqr_on_the_swingup(domain, capsys):
+    assert cli.main(["eval", "--controller", "ilqr", "--task", "swingup", "--domain", domain,
+                     "--episodes", "1", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["success_rate"] == 1.0 and summary["policy"] == "ilqr"
+
+
+def test_model_override_reaches_the_plan():
+    heavy = IterativeLQR(parameters={"pendulum_mass": 0.036})
+    assert heavy.model == RigidBodyModel.from_parameters({"pendulum_mass": 0.036})
+    state = np.array([0.1, 2.0, 0.0, 1.0])
+    assert not np.allclose(heavy.kernel.step(state, 1.0, H)[0], IterativeLQR().kernel.step(state, 1.0, H)[0])
