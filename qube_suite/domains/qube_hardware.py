@@ -51,7 +51,11 @@ from qube_suite.domains.interface import MeasuredState
 from qube_suite.hardware import conventions
 from qube_suite.hardware.errors import EncoderGlitchError, HardwareError
 from qube_suite.hardware.estimation import StateEstimator
-from qube_suite.hardware.quanser import SIMULATED, QubeServo2
+from qube_suite.hardware.plant import BOARD_MOTORS
+from qube_suite.hardware.quanser import DEVICES, SIMULATED, QuanserWrapper
+
+RESET_CONTROLLERS = ("dampen", "swingup")
+"""The controllers that reach the episodes' starts; built before the board samples."""
 
 RESET_LED = (1.0, 1.0, 0.0)
 """Yellow: a reset controller is driving."""
@@ -79,7 +83,10 @@ class Physics(MeasuredState, control.Physics):
 
     Args:
         control_frequency: sample rate of the board (Hz); one `step` is one sample.
-        board: "simulated" (the substitute) or "qube_servo2_usb" (a real Qube).
+        device: "qube_servo2" (default) or "qube_servo3": which Qube (its channels, its motor data
+            in the substitute's plant and in the model of the reset controllers).
+        board: "simulated" (the substitute) or the device's card type, "qube_servo2_usb" or
+            "qube_servo3_usb" (a real Qube).
         plant: parameters of the substitute's plant (`qube_suite.hardware.plant`).
         realtime: pace the substitute by the wall clock (a real board always is).
         max_voltage: the wrapper's voltage clip (V).
@@ -98,20 +105,30 @@ class Physics(MeasuredState, control.Physics):
     def __init__(self, control_frequency: float = 250.0, board: str = SIMULATED,
                  plant: dict[str, float] | None = None, realtime: bool | None = None,
                  max_voltage: float = 10.0, reset_voltage_limit: float = DEFAULT_RESET_VOLTAGE_LIMIT,
-                 reset_timeout: float = DEFAULT_RESET_TIMEOUT, identifier: str = "0"):
+                 reset_timeout: float = DEFAULT_RESET_TIMEOUT, identifier: str = "0",
+                 device: str = "qube_servo2"):
+        if device not in DEVICES:
+            raise ValueError(f"unknown device {device!r}; valid: {', '.join(DEVICES)}")
+        for name, value in (("max_voltage", max_voltage), ("reset_voltage_limit", reset_voltage_limit),
+                            ("reset_timeout", reset_timeout)):
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+                raise TypeError(f"{name} must be a number, got {value!r}")
         if not (0.0 < reset_voltage_limit <= max_voltage):
             raise ValueError(f"reset_voltage_limit must be in (0, max_voltage={max_voltage}] V, "
                              f"got {reset_voltage_limit}")
         if not (math.isfinite(reset_timeout) and reset_timeout > 0.0):
             raise ValueError(f"reset_timeout must be a positive number of seconds, got {reset_timeout}")
-        self.qube = QubeServo2(frequency=control_frequency, max_voltage=max_voltage, board=board,
-                               identifier=identifier, plant=plant, realtime=realtime)
+        self.device = device
+        self.qube = QuanserWrapper(DEVICES[device], board, identifier, frequency=control_frequency,
+                                   max_voltage=max_voltage, plant=plant, realtime=realtime)
+        self._motor = dict(BOARD_MOTORS[DEVICES[device].board_type])
         self._frequency = float(control_frequency)
         self._estimator = StateEstimator(control_frequency)
         self._reset_voltage_limit = float(reset_voltage_limit)
         self._reset_timeout = float(reset_timeout)
         self._controllers: dict[str, baselines.Controller] = {}
-        self._model = RigidBodyModel.from_parameters()
+        self._model = RigidBodyModel.from_parameters(self._motor)
+        self._closed = False
         self._voltage = 0.0
         self._applied = 0.0
         self._led: tuple[float, float, float] = RESET_LED
@@ -125,7 +142,7 @@ class Physics(MeasuredState, control.Physics):
         self._twin = None
         self.currents = np.zeros(1)
         self.encoders = np.zeros(2, dtype=np.int32)
-        self.others = np.zeros(1)
+        self.others = np.zeros(len(DEVICES[device].other_inputs))
 
     # -- the domain interface ---------------------------------------------------------------
 
@@ -145,10 +162,14 @@ class Physics(MeasuredState, control.Physics):
 
     def raw_readings(self) -> dict[str, float]:
         """The board's readings of the last sample in board units and signs: motor current (A),
-        encoder counts, tachometer (counts/s), and the missed samples since the board opened."""
-        return {"current": float(self.currents[0]), "encoder_arm": int(self.encoders[0]),
-                "encoder_pendulum": int(self.encoders[1]), "tachometer": float(self.others[0]),
-                "missed_samples": self.qube.missed_samples}
+        encoder counts, tachometer (counts/s; on a Qube-Servo 3 also the pendulum's), and the
+        missed samples since the board opened."""
+        readings = {"current": float(self.currents[0]), "encoder_arm": int(self.encoders[0]),
+                    "encoder_pendulum": int(self.encoders[1]), "tachometer": float(self.others[0]),
+                    "missed_samples": self.qube.missed_samples}
+        if len(self.others) > 1:
+            readings["pendulum_tachometer"] = float(self.others[1])
+        return readings
 
     def motor_current(self) -> float:
         """Motor current (A) measured by the board at the last sample."""
@@ -195,14 +216,24 @@ class Physics(MeasuredState, control.Physics):
         self._actuator_model = actuator_model
 
     def reset(self) -> None:
-        """Get the board ready for an episode: open it the first time, else wake it from idle."""
+        """Get the board ready for an episode: open it the first time, else wake it from idle.
+
+        The reset controllers are built before the board samples, so nothing slower than a
+        sample runs while it drives. An episode that was left running (abandoned, or ended by
+        a wrapper's time limit) is idled first. Raises RuntimeError after `close()`.
+        """
+        if self._closed:
+            raise RuntimeError("this hardware environment was closed and its board released; make a new one")
+        self._prepare_controllers()
         try:
             if not self.qube.is_open:
                 self.qube.open()
                 self._estimator.reset()
                 self._sample(0.0)
                 self._measured = self._estimate
-            elif self.qube.is_idle:
+            else:
+                if not self.qube.is_idle:
+                    self.qube.idle()
                 self.qube.resume()
         except BaseException as error:
             self._stop_after(error)
@@ -241,16 +272,31 @@ class Physics(MeasuredState, control.Physics):
 
     def drawable(self):
         """The simulated Qube put in the measured state with the LED's colour: a digital twin."""
+        twin = self._digital_twin()
+        twin.reset_to(self._estimate)
+        twin.set_led(self._led)
+        return twin.drawable()
+
+    def _digital_twin(self):
         if self._twin is None:
             from qube_suite.domains import qube
 
-            self._twin = qube.make_physics(self._frequency)
-        self._twin.reset_to(self._estimate)
-        self._twin.set_led(self._led)
-        return self._twin.drawable()
+            self._twin = qube.make_physics(self._frequency, self._motor)
+        return self._twin
+
+    @property
+    def model(self):
+        """The digital twin's `MjModel` (the simulated Qube drawn by `drawable()`), for dm_control
+        tools that read a physics' model (element names, cameras)."""
+        return self._digital_twin().model
+
+    def free(self) -> None:
+        """Stop the motor and close the board: what shimmy's and dm_control's `close()` call."""
+        self.close()
 
     def close(self) -> None:
-        """Stop the motor and close the board."""
+        """Stop the motor and close the board, for good: a later `reset` raises."""
+        self._closed = True
         self.qube.close()
         if self._twin is not None:
             self._twin.close()
@@ -285,11 +331,17 @@ class Physics(MeasuredState, control.Physics):
         self._estimate = (theta, alpha, dtheta, dalpha)
         self._samples += 1
 
+    def _prepare_controllers(self) -> None:
+        """Build the reset controllers (designing them takes longer than a sample) while the board
+        is closed or idle."""
+        for name in RESET_CONTROLLERS:
+            if name not in self._controllers:
+                self._controllers[name] = baselines.make(name, control_frequency=self._frequency,
+                                                         voltage_limit=self._reset_voltage_limit,
+                                                         latency_steps=self.latency_steps,
+                                                         parameters=self._motor)
+
     def _controller(self, name: str) -> baselines.Controller:
-        if name not in self._controllers:
-            self._controllers[name] = baselines.make(name, control_frequency=self._frequency,
-                                                     voltage_limit=self._reset_voltage_limit,
-                                                     latency_steps=self.latency_steps)
         return self._controllers[name]
 
     def _drive(self, name: str, done: Callable[[tuple], bool], purpose: str, hold: float = HOLD_TIME) -> None:
