@@ -8,6 +8,7 @@ optional extra, a hardware stop) end in one line on stderr and exit code 2.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import pathlib
 import sys
@@ -468,13 +469,35 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@contextlib.contextmanager
+def _exit_cleanly_on_sigterm():
+    """Let SIGTERM (e.g. `kill`, a job scheduler) unwind like Ctrl-C while a command runs, so that
+    it closes its environment: on hardware the motor stops and the board closes. Python's default
+    would end the process at once, leaving a real board to its watchdog."""
+    import signal
+    import threading
+
+    def terminate(signum, frame):
+        raise SystemExit(128 + signum)
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line with `argv` (default: `sys.argv[1:]`); return the exit code."""
     from qube_suite.hardware.errors import HardwareError
 
     args = build_parser().parse_args(argv)
     try:
-        return args.run(args)
+        with _exit_cleanly_on_sigterm():
+            return args.run(args)
     except (ValueError, OSError, ImportError, HardwareError) as error:
         print(f"qube-suite: error: {error}", file=sys.stderr)
         return 2

@@ -36,6 +36,7 @@ What differs from the simulated domain, as on a real Qube:
 
 from __future__ import annotations
 
+import gc
 import math
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -72,6 +73,40 @@ degrees of hanging, by settling; others by pumping energy."""
 
 HOLD_TIME = 0.5
 """A reset is done when its condition has held this long (s)."""
+
+
+class _FullCollectionsHeld:
+    """Python's full (oldest-generation) garbage collections held off while a board drives.
+
+    A full collection stops the program for as long as its heap takes to scan (up to 0.1 s in
+    a process that has loaded MuJoCo and torch): longer than a sample, enough to trip the
+    missed-sample stop or the watchdog. While any board drives, the oldest generation's
+    threshold is raised out of reach (young generations, which are fast, still collect); when
+    the last one idles, the threshold comes back and a full collection runs while the motor is
+    off.
+    """
+
+    def __init__(self):
+        self.holders: set[int] = set()
+        self.threshold: int | None = None
+
+    def hold(self, holder: object) -> None:
+        if not self.holders:
+            young, middle, self.threshold = gc.get_threshold()
+            gc.set_threshold(young, middle, 2**31 - 1)
+        self.holders.add(id(holder))
+
+    def release(self, holder: object) -> None:
+        if id(holder) not in self.holders:
+            return
+        self.holders.discard(id(holder))
+        if not self.holders:
+            young, middle, _ = gc.get_threshold()
+            gc.set_threshold(young, middle, self.threshold)
+            gc.collect()
+
+
+FULL_COLLECTIONS = _FullCollectionsHeld()
 
 
 class ResetError(HardwareError):
@@ -225,6 +260,9 @@ class Physics(MeasuredState, control.Physics):
         if self._closed:
             raise RuntimeError("this hardware environment was closed and its board released; make a new one")
         self._prepare_controllers()
+        if self.qube.is_open and not self.qube.is_idle:
+            self.end_episode()
+        FULL_COLLECTIONS.hold(self)
         try:
             if not self.qube.is_open:
                 self.qube.open()
@@ -232,8 +270,6 @@ class Physics(MeasuredState, control.Physics):
                 self._sample(0.0)
                 self._measured = self._estimate
             else:
-                if not self.qube.is_idle:
-                    self.qube.idle()
                 self.qube.resume()
         except BaseException as error:
             self._stop_after(error)
@@ -267,8 +303,11 @@ class Physics(MeasuredState, control.Physics):
 
     def end_episode(self) -> None:
         """Stop driving until the next reset: 0 V, amplifier disabled."""
-        if self.qube.is_open and not self.qube.is_idle:
-            self.qube.idle()
+        try:
+            if self.qube.is_open and not self.qube.is_idle:
+                self.qube.idle()
+        finally:
+            FULL_COLLECTIONS.release(self)
 
     def drawable(self):
         """The simulated Qube put in the measured state with the LED's colour: a digital twin."""
@@ -297,7 +336,10 @@ class Physics(MeasuredState, control.Physics):
     def close(self) -> None:
         """Stop the motor and close the board, for good: a later `reset` raises."""
         self._closed = True
-        self.qube.close()
+        try:
+            self.qube.close()
+        finally:
+            FULL_COLLECTIONS.release(self)
         if self._twin is not None:
             self._twin.close()
             self._twin = None
@@ -311,16 +353,19 @@ class Physics(MeasuredState, control.Physics):
         """Leave the motor stopped after `error`: the board idles (0 V, amplifier disabled), or is
         closed after an encoder glitch (the next reset reopens it and zeroes the encoders)."""
         qube = self.qube
-        if not qube.is_open:
-            return
-        if isinstance(error, EncoderGlitchError):
-            qube.close()
-        elif not qube.is_idle:
-            try:
-                qube.idle()
-            except BaseException:
+        try:
+            if not qube.is_open:
+                return
+            if isinstance(error, EncoderGlitchError):
                 qube.close()
-                raise
+            elif not qube.is_idle:
+                try:
+                    qube.idle()
+                except BaseException:
+                    qube.close()
+                    raise
+        finally:
+            FULL_COLLECTIONS.release(self)
 
     def _sample(self, volts: float) -> None:
         self.currents, self.encoders, self.others = self.qube.action(
