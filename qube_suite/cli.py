@@ -189,6 +189,13 @@ def _video_recorder(args: argparse.Namespace, environment: Any):
     return recorder
 
 
+def media_films_after_episode(environment: Any) -> bool:
+    """True on hardware: videos are filmed from the episode's trace after it has run."""
+    from qube_suite import media
+
+    return media.films_after_episode(environment)
+
+
 def _recorder(args: argparse.Namespace, environment: Any, policy_name: str):
     """The episode recorder the arguments ask for, observing `environment`; None without --record."""
     if args.record is None:
@@ -231,7 +238,8 @@ def _run(args: argparse.Namespace) -> int:
         policy, name = _make_policy(args, environment)
         recorder = _video_recorder(args, environment)
         episode_recorder = _recorder(args, environment, name)
-        hooks = [recorder] if recorder is not None else []
+        film_after = recorder is not None and media_films_after_episode(environment)
+        hooks = [recorder] if recorder is not None and not film_after else []
         if args.realtime and args.domain not in REALTIME_DOMAIN_KWARGS:
             hooks.append(RealtimePacer())
         traces = []
@@ -243,6 +251,8 @@ def _run(args: argparse.Namespace) -> int:
                                              label=f"{name} on {args.domain}/{args.task}, seed {seed}",
                                              seed=seed)
                 traces.append(trace)
+                if film_after:  # hardware: rendered from the trace, never inside the loop
+                    recorder.film(trace, environment.control_frequency)
                 bar.update((episode + 1) * environment.episode_steps - bar.n)  # an early end skips ahead
                 end = "terminated" if trace.terminated else "time limit"
                 tqdm.write(f"episode {episode + 1} (seed {seed}): return {trace.episode_return:.1f}, "

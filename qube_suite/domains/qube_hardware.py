@@ -134,6 +134,10 @@ class Physics(MeasuredState, control.Physics):
     """A step reads the next sample, then writes its voltage: the voltage acts one sample after the
     observation it answers (`interface.QubePhysics.latency_steps`)."""
 
+    paced_by_board = True
+    """The board's clock paces every step: nothing slower than a sample (rendering, plotting) may
+    run inside the loop; videos are filmed from the recorded trace after an episode."""
+
     physics_error = None
     """Always None: faults on hardware raise instead (see the README's safety table)."""
 
