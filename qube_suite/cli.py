@@ -119,6 +119,23 @@ def _frame_size(text: str) -> tuple[int, int]:
     return width, height
 
 
+def _add_hardware_arguments(parser: argparse.ArgumentParser) -> None:
+    """--device and --board, for commands that run on the hardware domain."""
+    parser.add_argument("--device", choices=("qube_servo2", "qube_servo3"), default=None,
+                        help="with qube_hardware: which Qube (default: qube_servo2)")
+    parser.add_argument("--board", default=None,
+                        help="with qube_hardware: simulated (the substitute board, default), or the card "
+                             "of a real Qube through Quanser's SDK: qube_servo2_usb or qube_servo3_usb")
+
+
+def _hardware_domain_kwargs(args: argparse.Namespace) -> dict[str, str]:
+    """domain_kwargs from --device and --board (which need --domain qube_hardware)."""
+    chosen = {name: getattr(args, name) for name in ("device", "board") if getattr(args, name) is not None}
+    if chosen and args.domain != "qube_hardware":
+        raise ValueError(f"--{' and --'.join(chosen)} need --domain qube_hardware")
+    return chosen
+
+
 def _add_policy_arguments(parser: argparse.ArgumentParser) -> None:
     """What acts in the episodes: exactly one of the group's options."""
     group = parser.add_mutually_exclusive_group(required=True)
@@ -227,10 +244,7 @@ def _run(args: argparse.Namespace) -> int:
 
         extras.require("matplotlib", "--plot")
     domain_kwargs = dict(REALTIME_DOMAIN_KWARGS.get(args.domain, {})) if args.realtime else {}
-    if args.board is not None:
-        if args.domain != "qube_hardware":
-            raise ValueError("--board needs --domain qube_hardware")
-        domain_kwargs["board"] = args.board
+    domain_kwargs.update(_hardware_domain_kwargs(args))
     environment = suite.load(args.domain, args.task, task_kwargs={"random": args.seed},
                              randomization=args.randomization, domain_kwargs=domain_kwargs)
     policy, recorder, episode_recorder = None, None, None
@@ -294,8 +308,7 @@ def _add_run(commands) -> None:
     run.add_argument("--seed", type=int, default=0, help="seed of the first episode; then seed + 1, ... "
                                                          "(default: 0)")
     run.add_argument("--randomization", help="a preset (none, mild, moderate, sim2real) or a YAML file")
-    run.add_argument("--board", help="with qube_hardware: simulated (the substitute board, default) or "
-                                     "qube_servo2_usb (a real Qube through Quanser's SDK)")
+    _add_hardware_arguments(run)
     run.add_argument("--realtime", action="store_true",
                      help="keep to the wall clock: sleep in simulation, the substitute board's realtime "
                           "mode on qube_hardware")
@@ -362,7 +375,8 @@ def _eval(args: argparse.Namespace) -> int:
     from qube_suite.evaluation import evaluate
 
     result = evaluate(args.controller, domain=args.domain, task=args.task, episodes=args.episodes,
-                      seed=args.seed, progress=not args.json)
+                      seed=args.seed, progress=not args.json,
+                      domain_kwargs=_hardware_domain_kwargs(args) or None)
     summary = result.to_dict()
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -391,6 +405,7 @@ def _add_eval(commands) -> None:
     evaluation.add_argument("--episodes", type=int, default=20, help="number of episodes (default: 20)")
     evaluation.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
     evaluation.add_argument("--json", action="store_true", help="print the result as JSON")
+    _add_hardware_arguments(evaluation)
     evaluation.set_defaults(run=_eval)
 
 
@@ -417,7 +432,8 @@ def _train(args: argparse.Namespace) -> int:
     result = train(args.task, algo=args.algo, steps=args.steps, seed=args.seed, domain=args.domain,
                    randomization=args.randomization, out=args.out, num_envs=args.num_envs,
                    evaluations=args.evaluations, eval_episodes=args.eval_episodes,
-                   checkpoints=args.checkpoints, init=args.init)
+                   checkpoints=args.checkpoints, init=args.init,
+                   domain_kwargs=_hardware_domain_kwargs(args) or None)
     print(f"trained {result.steps} steps in {result.wall_time:.0f} s; best evaluation return "
           f"{result.best_mean_return:.1f}; policy {result.policy} (logs in {result.directory})")
     return 0
@@ -452,6 +468,7 @@ def _add_train(commands) -> None:
                           help="start from the model of a previous run (its directory), e.g. balance before "
                                "swingup, swingup before swingup_follow, or to fine-tune with a randomization")
     training.add_argument("--out", default=None, help="run directory (default: runs/ALGO_TASK_SEED)")
+    _add_hardware_arguments(training)
     training.set_defaults(run=_train)
 
 

@@ -118,8 +118,9 @@ class Physics(MeasuredState, control.Physics):
 
     Args:
         control_frequency: sample rate of the board (Hz); one `step` is one sample.
-        device: "qube_servo2" (default) or "qube_servo3": which Qube (its channels, its motor data
-            in the substitute's plant and in the model of the reset controllers).
+        device: "qube_servo2" or "qube_servo3": which Qube (its channels, its motor data in the
+            substitute's plant and in the model of the reset controllers). Default: the one
+            `board` names, else "qube_servo2".
         board: "simulated" (the substitute) or the device's card type, "qube_servo2_usb" or
             "qube_servo3_usb" (a real Qube).
         plant: parameters of the substitute's plant (`qube_suite.hardware.plant`).
@@ -145,7 +146,9 @@ class Physics(MeasuredState, control.Physics):
                  plant: dict[str, float] | None = None, realtime: bool | None = None,
                  max_voltage: float = 10.0, reset_voltage_limit: float = DEFAULT_RESET_VOLTAGE_LIMIT,
                  reset_timeout: float = DEFAULT_RESET_TIMEOUT, identifier: str = "0",
-                 device: str = "qube_servo2"):
+                 device: str | None = None):
+        if device is None:
+            device = next((name for name, d in DEVICES.items() if d.board_type == board), "qube_servo2")
         if device not in DEVICES:
             raise ValueError(f"unknown device {device!r}; valid: {', '.join(DEVICES)}")
         for name, value in (("max_voltage", max_voltage), ("reset_voltage_limit", reset_voltage_limit),
@@ -326,6 +329,11 @@ class Physics(MeasuredState, control.Physics):
 
             self._twin = qube.make_physics(self._frequency, self._motor)
         return self._twin
+
+    def design_parameters(self) -> dict[str, float]:
+        """Physical parameters (long names) that differ from the nominal Qube-Servo 2 for this
+        device (a Qube-Servo 3's motor): what controllers for it are designed with."""
+        return dict(self._motor)
 
     @property
     def model(self):

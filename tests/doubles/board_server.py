@@ -25,7 +25,9 @@ process to open the card gets the same board, watchdog expiry included.
 
 `state(identifier)` (not part of Quanser's API) reports what a test checks on the
 board: the voltage the amplifier applies, whether it is enabled, whether the
-watchdog has expired, whether the last owner closed it, the card options set.
+watchdog has expired, whether the last owner closed it, the card options set,
+and the longest time between two watchdog reloads while it ran (`worst_period`:
+the control loop's worst sample period, as the board saw it).
 """
 
 from __future__ import annotations
@@ -56,6 +58,8 @@ class _Board:
         self.closed_cleanly = False
         self.options = ""
         self.tasks: dict[int, object] = {}
+        self.last_reload: float | None = None
+        self.worst_period = 0.0      # longest time between two watchdog reloads while it ran (s)
 
 
 class _Server:
@@ -126,6 +130,13 @@ class _Server:
             hil.close()
             board.owner, board.closed_cleanly = None, True
             return None
+        if method in ("watchdog_start", "watchdog_reload"):
+            now = time.perf_counter()
+            if method == "watchdog_reload" and board.last_reload is not None:
+                board.worst_period = max(board.worst_period, now - board.last_reload)
+            board.last_reload = now
+        elif method in ("watchdog_stop", "watchdog_clear"):
+            board.last_reload = None
         if method == "set_card_specific_options":
             board.options = args[0]
             return None
@@ -181,7 +192,7 @@ class _Server:
             "watchdog_expired": hil.watchdog_is_expired() if open_ else None,
             "held": board.owner is not None, "closed_cleanly": board.closed_cleanly,
             "card_options": board.options, "true_state": hil.true_state().tolist(), "time": hil.time,
-            "led": hil.led,
+            "led": hil.led, "worst_period": board.worst_period,
         }
 
 
