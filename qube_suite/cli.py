@@ -481,7 +481,41 @@ def _add_list(commands) -> None:
     listing.set_defaults(run=_list)
 
 
-SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_train, _add_bench)
+def _check_board(args: argparse.Namespace) -> int:
+    from qube_suite.hardware.bringup import check_board
+
+    device = args.device or ("qube_servo3" if args.board == "qube_servo3_usb" else "qube_servo2")
+    checks = check_board(board=args.board or "simulated", device=device, identifier=args.identifier,
+                         interactive=not args.non_interactive)
+    failed = [check.name for check in checks if check.passed is False]
+    print(f"{len(checks) - len(failed)} of {len(checks)} checks passed or skipped"
+          + (f"; failed: {', '.join(failed)}" if failed else ""))
+    return 1 if failed else 0
+
+
+def _add_check_board(commands) -> None:
+    check = commands.add_parser(
+        "check-board", help="guided bring-up of a Qube: amplifier, LED, encoder signs, a small pulse",
+        description="Open the board and check the amplifier's enable and fault inputs, cycle the LED, "
+                    "ask you to turn the arm and the pendulum by hand and print the signs the encoders "
+                    "see, apply a 0.5 V pulse for 0.2 s (the arm must turn the positive way, the current "
+                    "must have the voltage's sign), compare the tachometer with the encoder's derivative, "
+                    "and close the board with the motor off. Exit code 1 if a check failed.",
+        epilog="examples:\n  qube-suite check-board --board qube_servo2_usb\n"
+               "  qube-suite check-board --board qube_servo3_usb\n"
+               "  qube-suite check-board --non-interactive     # the substitute board, no questions",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    check.add_argument("--board", default=None,
+                       help="simulated (the substitute, default), qube_servo2_usb or qube_servo3_usb")
+    check.add_argument("--device", choices=("qube_servo2", "qube_servo3"), default=None,
+                       help="which Qube (default: the one --board names, else qube_servo2)")
+    check.add_argument("--identifier", default="0", help="the board's number (default: 0)")
+    check.add_argument("--non-interactive", action="store_true",
+                       help="skip the steps that need a person at the Qube (LED colours, hand moves)")
+    check.set_defaults(run=_check_board)
+
+
+SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_train, _add_bench, _add_check_board)
 """Parser builders of the subcommands, in the order `--help` lists them."""
 
 

@@ -5,12 +5,14 @@
 drives it through the real-board code path. `busy_core`: a process spinning on
 the other core while the test runs.
 
-The test process (the control loop under test, and the children it starts) runs
-with real-time scheduling where the system allows it, below the board's, as a lab
-runs a control loop (`chrt -f 10 qube-suite run ...`): the tests then measure what
-the package's own code does within a sample, not how busy the rest of the machine
-is (this machine is shared). Work inside the loop that takes longer than a sample
-still misses samples at any priority.
+The board process runs with real-time scheduling where allowed (a real board's
+clock does not wait for the host's scheduler); the test process, the control loop
+under test, runs at normal priority and bears every delay of the host. (Raising
+it to real-time scheduling is not safe here: a real-time thread that spins while
+waiting for a normal-priority worker, as OpenBLAS does, starves that worker.) On a
+host loaded far beyond its cores, the loop can miss samples for reasons outside
+the package, and these tests can then fail with `MissedSamplesError` or
+`WatchdogExpiredError`: the safety stops doing their job.
 """
 
 from __future__ import annotations
@@ -25,17 +27,8 @@ import pytest
 DOUBLES = str(Path(__file__).parent / "doubles")
 
 
-LOOP_PRIORITY = 10
-"""SCHED_FIFO priority of the control loop under test (the board process runs at 20)."""
-
-
 @pytest.fixture(name="wall_clock_board")
 def wall_clock_board_fixture(tmp_path, monkeypatch):
-    previous = os.sched_getscheduler(0), os.sched_getparam(0)
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(LOOP_PRIORITY))
-    except (AttributeError, PermissionError, OSError):
-        previous = None
     monkeypatch.syspath_prepend(DOUBLES)
     for name in [n for n in sys.modules if n == "quanser" or n.startswith("quanser.")]:
         monkeypatch.delitem(sys.modules, name)
@@ -48,8 +41,7 @@ def wall_clock_board_fixture(tmp_path, monkeypatch):
     server.stop()
     for name in [n for n in sys.modules if n == "quanser" or n.startswith("quanser.")]:
         del sys.modules[name]
-    if previous is not None:
-        os.sched_setscheduler(0, *previous)
+
 
 
 @pytest.fixture(name="busy_core")

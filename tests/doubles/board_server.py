@@ -26,7 +26,7 @@ process to open the card gets the same board, watchdog expiry included.
 `state(identifier)` (not part of Quanser's API) reports what a test checks on the
 board: the voltage the amplifier applies, whether it is enabled, whether the
 watchdog has expired, whether the last owner closed it, the card options set,
-and the longest time between two watchdog reloads while it ran (`worst_period`:
+and the longest time since the last open between two watchdog reloads while it ran (`worst_period`:
 the control loop's worst sample period, as the board saw it).
 """
 
@@ -179,6 +179,7 @@ class _Server:
             if not board.hil.is_valid():
                 board.hil.open(card_type, identifier)
             board.owner, board.closed_cleanly = connection_id, False
+            board.worst_period, board.last_reload = 0.0, None
         return None
 
     def state(self, identifier: str) -> dict | None:
