@@ -346,3 +346,34 @@ def test_full_garbage_collections_wait_while_the_board_drives():
         assert gc.get_threshold() == threshold              # back while the board idles
         env.reset()
     assert gc.get_threshold() == threshold
+
+
+# -- arm centring and the encoder check between episodes ----------------------------------------------
+
+def test_a_lost_pendulum_zero_is_found_between_episodes_with_the_motor_stopped():
+    from qube_suite.domains.qube_hardware import EncoderCheckError
+
+    with load("swingup") as env:
+        env.reset()
+        board = env.physics.qube.board
+        board.glitch_encoder(1, 6)                        # six counts lost: too few for the glitch stop
+        with pytest.raises(EncoderCheckError, match="[5-7] counts from hanging"):
+            env.reset()
+        assert_safe(board, closed=False)
+
+
+def test_the_encoder_check_can_be_turned_off():
+    with load("swingup", check_encoders=False) as env:
+        env.reset()
+        env.physics.qube.board.glitch_encoder(1, 6)
+        env.reset()
+
+
+def test_hanging_starts_have_the_arm_centred():
+    from qube_suite.domains.qube_hardware import ARM_CENTRE_TOLERANCE
+
+    with load("rotor") as env:
+        for _ in range(3):
+            timestep = env.reset()
+            assert abs(timestep.observation["state"][0]) < ARM_CENTRE_TOLERANCE
+            env.step(np.array([3.0]))

@@ -74,6 +74,14 @@ degrees of hanging, by settling; others by pumping energy."""
 HOLD_TIME = 0.5
 """A reset is done when its condition has held this long (s)."""
 
+ARM_CENTRE_TOLERANCE = math.radians(5.0)
+"""With the encoder check on, a hanging reset also centres the arm to within 5 degrees of the zero
+set at open() (the reset controllers leave it within about 1 degree on the substitute)."""
+
+PENDULUM_REST_TOLERANCE = 1
+"""Encoder counts: with the encoder check on, the pendulum hanging at rest must read pi to within one
+count (its Coulomb friction stops it within a count of hanging); more means its zero is lost."""
+
 
 class _FullCollectionsHeld:
     """Python's full (oldest-generation) garbage collections held off while a board drives.
@@ -113,6 +121,11 @@ class ResetError(HardwareError):
     """A reset controller did not reach the episode's start in time."""
 
 
+class EncoderCheckError(HardwareError):
+    """Between episodes, the pendulum hung at rest but its encoder did not read hanging: the encoder's
+    zero is lost (missed counts, or the board was opened with the pendulum swinging)."""
+
+
 class Physics(MeasuredState, control.Physics):
     """A Qube on a Quanser board, through the domain interface (`domains.interface.QubePhysics`).
 
@@ -129,6 +142,10 @@ class Physics(MeasuredState, control.Physics):
         reset_voltage_limit: largest voltage of the reset controllers (V).
         reset_timeout: longest a reset may take (s).
         identifier: the board's number.
+        check_encoders: at each reset that settles the pendulum hanging, centre the arm to within
+            `ARM_CENTRE_TOLERANCE` (5 degrees) and check that the pendulum, hanging at rest, reads
+            pi to within `PENDULUM_REST_TOLERANCE` (one count); else raise `EncoderCheckError`
+            (`ResetError` if the arm cannot be centred). Default True.
     """
 
     latency_steps = 1
@@ -146,7 +163,10 @@ class Physics(MeasuredState, control.Physics):
                  plant: dict[str, float] | None = None, realtime: bool | None = None,
                  max_voltage: float = 10.0, reset_voltage_limit: float = DEFAULT_RESET_VOLTAGE_LIMIT,
                  reset_timeout: float = DEFAULT_RESET_TIMEOUT, identifier: str = "0",
-                 device: str | None = None):
+                 device: str | None = None, check_encoders: bool = True):
+        if not isinstance(check_encoders, bool):
+            raise TypeError(f"check_encoders must be True or False, got {check_encoders!r}")
+        self._check_encoders = check_encoders
         if device is None:
             device = next((name for name, d in DEVICES.items() if d.board_type == board), "qube_servo2")
         if device not in DEVICES:
@@ -295,6 +315,9 @@ class Physics(MeasuredState, control.Physics):
                 self._drive("swingup", self._held_upright, "swing up and hold upright")
             else:
                 self._drive("dampen", self._hanging_at_rest, "settle hanging")
+                if self._check_encoders:
+                    self._drive("dampen", self._centred_at_rest, "centre the arm")
+                    self._check_pendulum_zero()
                 if math.pi - abs(target_alpha) > NEAR_GOAL:
                     energy = self._model.energy(target_alpha, float(state[2]), float(state[3]))
                     self._drive("swingup", lambda s: self._model.energy(s[1], s[2], s[3]) >= energy,
@@ -420,6 +443,22 @@ class Physics(MeasuredState, control.Physics):
     def _held_upright(state: tuple) -> bool:
         theta, alpha, dtheta, dalpha = state
         return abs(alpha) < math.radians(5) and abs(theta) < math.radians(15) and abs(dalpha) < 1.0
+
+    def _check_pendulum_zero(self) -> None:
+        counts = (math.pi - abs(self._estimate[1])) / conventions.RADIANS_PER_COUNT
+        if counts > PENDULUM_REST_TOLERANCE + 1e-6:
+            self._sample(0.0)
+            raise EncoderCheckError(
+                f"the pendulum hangs at rest but its encoder reads {counts:.0f} counts from hanging (at most "
+                f"{PENDULUM_REST_TOLERANCE} allowed): its zero is lost. Close the environment, let the "
+                "pendulum hang still, centre the arm and make a new one (opening zeroes the encoders); "
+                "domain_kwargs={'check_encoders': False} turns this check off")
+
+    @staticmethod
+    def _centred_at_rest(state: tuple) -> bool:
+        theta, alpha, dtheta, dalpha = state
+        return (abs(theta) < ARM_CENTRE_TOLERANCE and math.pi - abs(alpha) < math.radians(3)
+                and abs(dalpha) < 0.3 and abs(dtheta) < 0.3)
 
     @staticmethod
     def _hanging_at_rest(state: tuple) -> bool:
