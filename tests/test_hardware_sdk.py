@@ -1,6 +1,7 @@
 """Quanser's SDK as users have it: older versions, a missing native library, its error texts."""
 
 import builtins
+import math
 import sys
 import time
 
@@ -81,3 +82,23 @@ def test_an_interrupt_inside_idle_leaves_the_watchdog_guarding_the_outputs(monke
         assert board.applied_voltage == 0.0 and not board.amplifier_enabled
     finally:
         qube.close()
+
+
+def test_a_pendulum_still_swinging_at_open_keeps_the_boards_counts(wall_clock_board):
+    """Run after run on one Qube: the next open finds the pendulum still swinging and must not zero
+    its encoder there (the board went on counting since it was zeroed at rest)."""
+    from quanser.hardware import HIL
+
+    with QubeServo2(board="qube_servo2_usb") as qube:
+        assert qube.encoders_zeroed                                    # at rest: zeroed here
+    card = HIL("qube_servo2_usb", "0")
+    card._call("set_true_state", [0.0, math.pi - 0.6, 0.0, 0.0])     # the substitute's plant: a swing
+    card.close()
+    with QubeServo2(board="qube_servo2_usb") as qube:
+        assert not qube.encoders_zeroed
+        swing = []
+        for _ in range(250):                                           # 1 s: more than a period
+            _, counts, _ = qube.action([0.0])
+            swing.append(counts[1])
+    amplitude = max(abs(c) for c in swing) * 2 * math.pi / 2048
+    assert 0.4 < amplitude < 0.62                                      # measured from hanging, as before

@@ -9,9 +9,13 @@ real one (`board="qube_servo2_usb"`), which it drives through Quanser's Python H
 API (`quanser.hardware`, imported only then). Nothing is opened before
 `__enter__`/`open()`.
 
-Entering zeroes the motor voltage and the encoders, sets the watchdog to zero the
-voltage and disable the amplifier on expiry, enables the amplifier, starts a
-reader task at `frequency` and starts the watchdog. `action(voltages, led=None)`
+Entering clears a watchdog left expired by an earlier run, writes 0 V with the
+amplifier off, starts a reader task at `frequency`, zeroes the encoders if the
+Qube is at rest (no count changes for 0.2 s; a pendulum still swinging from an
+earlier run keeps the counts the board went on counting since they were last
+zeroed, which stay valid while the board is powered), sets the watchdog to zero
+the voltage and disable the amplifier on expiry, enables the amplifier and starts
+the watchdog. `action(voltages, led=None)`
 waits for the next sample, reloads the watchdog, checks safety, writes the
 voltages and returns (currents in A, encoder counts, other inputs) as the board
 reports them: raw board units and signs (`conventions.py` maps them to the
@@ -123,6 +127,10 @@ DEVICES = {"qube_servo2": QUBE_SERVO_2, "qube_servo3": QUBE_SERVO_3}
 
 MAX_FREQUENCY = 10000.0
 """Highest sample rate (Hz) the wrapper accepts: the substitute's plant integrates at 10 kHz."""
+
+REST_CHECK_TIME = 0.2
+"""At open(), the encoders are zeroed only if no count changed over this long (s): a pendulum still
+swinging from an earlier run keeps the counts the board went on counting since they were zeroed."""
 
 AMPLIFIER_RANGE = 15.0
 """Largest `max_voltage` (V): the Qube's amplifier range, +-15 V (see `plant.py`)."""
@@ -286,6 +294,8 @@ class QuanserWrapper:
         self.max_encoder_speed = max_encoder_speed
         self.missed_samples = 0
         self.stall_warning = False
+        self.encoders_zeroed = False
+        """True if the last open() zeroed the encoders (the Qube was at rest)."""
         self._idle = False
 
         d = device
@@ -362,15 +372,8 @@ class QuanserWrapper:
             if self.device.card_options:
                 board.set_card_specific_options(self.device.card_options, len(self.device.card_options) + 1)
             board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
-            board.set_encoder_counts(c["encoder_inputs"], len(c["encoder_inputs"]),
-                                     np.zeros(len(c["encoder_inputs"]), dtype=np.int32))
-            board.watchdog_set_analog_expiration_state(c["analog_outputs"], len(c["analog_outputs"]),
-                                                       self._zero_volts)
-            board.watchdog_set_digital_expiration_state(  # 0 = DigitalState.LOW: amplifiers disabled
-                c["digital_outputs"], len(c["digital_outputs"]),
-                np.zeros(len(c["digital_outputs"]), dtype=np.int32))
             board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
-                                np.ones(len(c["digital_outputs"]), dtype=np.int8))
+                                np.zeros(len(c["digital_outputs"]), dtype=np.int8))
             handle.task = board.task_create_reader(
                 1, c["analog_inputs"], len(c["analog_inputs"]), c["encoder_inputs"], len(c["encoder_inputs"]),
                 c["digital_inputs"], len(c["digital_inputs"]), c["other_inputs"], len(c["other_inputs"]))
@@ -378,6 +381,18 @@ class QuanserWrapper:
             # Quanser's older Python API has no HIL.INFINITE; -1 is its value in the C API.
             board.task_start(self._task, clock.HARDWARE_CLOCK_0, self.frequency,
                              getattr(hil_class, "INFINITE", -1))
+            self.encoders_zeroed = self._at_rest(board)
+            if self.encoders_zeroed:
+                board.set_encoder_counts(c["encoder_inputs"], len(c["encoder_inputs"]),
+                                         np.zeros(len(c["encoder_inputs"]), dtype=np.int32))
+            board.watchdog_set_analog_expiration_state(c["analog_outputs"], len(c["analog_outputs"]),
+                                                       self._zero_volts)
+            board.watchdog_set_digital_expiration_state(  # 0 = DigitalState.LOW: amplifiers disabled
+                c["digital_outputs"], len(c["digital_outputs"]),
+                np.zeros(len(c["digital_outputs"]), dtype=np.int32))
+            board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
+                                np.ones(len(c["digital_outputs"]), dtype=np.int8))
+            self._overflows_seen = None
             board.watchdog_start(self.watchdog_timeout)
         except BaseException as error:
             self.close()
@@ -385,6 +400,17 @@ class QuanserWrapper:
                 raise BoardIOError(
                     f"could not set up the {self.device.board_type} board: {error_text(error)}") from error
             raise
+
+    def _at_rest(self, board: Any) -> bool:
+        """True if no encoder count changed over `REST_CHECK_TIME` of samples (amplifier off)."""
+        first = None
+        for _ in range(max(2, round(REST_CHECK_TIME * self.frequency))):
+            board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
+            if first is None:
+                first = self._encoders.copy()
+            elif not np.array_equal(first, self._encoders):
+                return False
+        return True
 
     def close(self) -> None:
         """Stop the motor and close the board: every step is tried; the first failure is raised after."""
