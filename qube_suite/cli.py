@@ -132,7 +132,8 @@ def _hardware_domain_kwargs(args: argparse.Namespace) -> dict[str, str]:
     """domain_kwargs from --device and --board (which need --domain qube_hardware)."""
     chosen = {name: getattr(args, name) for name in ("device", "board") if getattr(args, name) is not None}
     if chosen and args.domain != "qube_hardware":
-        raise ValueError(f"--{' and --'.join(chosen)} need --domain qube_hardware")
+        raise ValueError(f"--{' and --'.join(chosen)} {'needs' if len(chosen) == 1 else 'need'} "
+                         "--domain qube_hardware")
     return chosen
 
 

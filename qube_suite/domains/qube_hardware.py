@@ -71,6 +71,10 @@ NEAR_GOAL = math.radians(30.0)
 """Starts within 30 degrees of upright are reached by swing-up and hold; within 30
 degrees of hanging, by settling; others by pumping energy."""
 
+WILD_SWING = 3.0
+"""Pendulum speed (rad/s) above which an upright start first settles the pendulum hanging: the
+swing-up catches a pendulum that starts near rest, not one swinging wildly."""
+
 HOLD_TIME = 0.5
 """A reset is done when its condition has held this long (s)."""
 
@@ -312,6 +316,8 @@ class Physics(MeasuredState, control.Physics):
         self._led = RESET_LED
         try:
             if abs(target_alpha) <= NEAR_GOAL:
+                if abs(self._estimate[3]) > WILD_SWING:  # e.g. still falling from the last run: calm it first
+                    self._drive("dampen", self._hanging_at_rest, "settle hanging")
                 self._drive("swingup", self._held_upright, "swing up and hold upright")
             else:
                 self._drive("dampen", self._hanging_at_rest, "settle hanging")

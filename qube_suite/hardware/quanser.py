@@ -459,12 +459,14 @@ class QuanserWrapper:
         board = self._require_open()
         c = self._channels
         self._idle = True
-        if board.watchdog_is_expired():  # the outputs are at the expiration states (0 V, amplifier off)
-            board.watchdog_stop()
-            return
-        board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
-        board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
-                            np.zeros(len(c["digital_outputs"]), dtype=np.int8))
+        try:
+            if not board.watchdog_is_expired():  # expired: the outputs are at 0 V, amplifier off
+                board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
+                board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
+                                    np.zeros(len(c["digital_outputs"]), dtype=np.int8))
+        except self._board_error as error:
+            if not board.watchdog_is_expired():  # it expired between the check and the writes: safe
+                raise BoardIOError(f"could not stop the motor: {error_text(error)}") from error
         board.watchdog_stop()  # only now: until here the watchdog still guards the outputs
 
     def resume(self) -> None:
@@ -475,12 +477,15 @@ class QuanserWrapper:
             return
         c = self._channels
         self._overflows_seen = None
-        if board.watchdog_is_expired():
-            board.watchdog_clear()
-        board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
-        board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
-                            np.ones(len(c["digital_outputs"]), dtype=np.int8))
-        board.watchdog_start(self.watchdog_timeout)
+        try:
+            if board.watchdog_is_expired():
+                board.watchdog_clear()
+            board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
+            board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
+                                np.ones(len(c["digital_outputs"]), dtype=np.int8))
+            board.watchdog_start(self.watchdog_timeout)
+        except self._board_error as error:
+            raise BoardIOError(f"could not resume driving: {error_text(error)}") from error
         self._idle = False
         self._last_counts = None  # the Qube may have moved while idle
 
