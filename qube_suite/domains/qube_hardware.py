@@ -82,9 +82,10 @@ ARM_CENTRE_TOLERANCE = math.radians(5.0)
 """With the encoder check on, a hanging reset also centres the arm to within 5 degrees of the zero
 set at open() (the reset controllers leave it within about 1 degree on the substitute)."""
 
-PENDULUM_REST_TOLERANCE = 1
-"""Encoder counts: with the encoder check on, the pendulum hanging at rest must read pi to within one
-count (its Coulomb friction stops it within a count of hanging); more means its zero is lost."""
+PENDULUM_REST_TOLERANCE = 2
+"""Encoder counts: with the encoder check on, the pendulum hanging at rest must read pi to within two
+counts: its Coulomb friction stops it within a count of hanging, and the zero was itself set at such
+a rest, within a count of hanging. More means its zero is lost."""
 
 
 class _FullCollectionsHeld:
