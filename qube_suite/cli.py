@@ -8,6 +8,7 @@ optional extra, a hardware stop) end in one line on stderr and exit code 2.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import pathlib
 import sys
@@ -124,6 +125,24 @@ def _frame_size(text: str) -> tuple[int, int]:
     return width, height
 
 
+def _add_hardware_arguments(parser: argparse.ArgumentParser) -> None:
+    """--device and --board, for commands that run on the hardware domain."""
+    parser.add_argument("--device", choices=("qube_servo2", "qube_servo3"), default=None,
+                        help="with qube_hardware: which Qube (default: qube_servo2)")
+    parser.add_argument("--board", default=None,
+                        help="with qube_hardware: simulated (the substitute board, default), or the card "
+                             "of a real Qube through Quanser's SDK: qube_servo2_usb or qube_servo3_usb")
+
+
+def _hardware_domain_kwargs(args: argparse.Namespace) -> dict[str, str]:
+    """domain_kwargs from --device and --board (which need --domain qube_hardware)."""
+    chosen = {name: getattr(args, name) for name in ("device", "board") if getattr(args, name) is not None}
+    if chosen and args.domain != "qube_hardware":
+        raise ValueError(f"--{' and --'.join(chosen)} {'needs' if len(chosen) == 1 else 'need'} "
+                         "--domain qube_hardware")
+    return chosen
+
+
 def _add_policy_arguments(parser: argparse.ArgumentParser) -> None:
     """What acts in the episodes: exactly one of the group's options."""
     group = parser.add_mutually_exclusive_group(required=True)
@@ -213,6 +232,13 @@ def _video_recorder(args: argparse.Namespace, environment: Any):
     return recorder
 
 
+def media_films_after_episode(environment: Any) -> bool:
+    """True on hardware: videos are filmed from the episode's trace after it has run."""
+    from qube_suite import media
+
+    return media.films_after_episode(environment)
+
+
 def _recorder(args: argparse.Namespace, environment: Any, policy_name: str):
     """The episode recorder the arguments ask for, observing `environment`; None without --record."""
     if args.record is None:
@@ -244,10 +270,7 @@ def _run(args: argparse.Namespace) -> int:
 
         extras.require("matplotlib", "--plot")
     domain_kwargs = dict(REALTIME_DOMAIN_KWARGS.get(args.domain, {})) if args.realtime else {}
-    if args.board is not None:
-        if args.domain != "qube_hardware":
-            raise ValueError("--board needs --domain qube_hardware")
-        domain_kwargs["board"] = args.board
+    domain_kwargs.update(_hardware_domain_kwargs(args))
     task_kwargs = {"random": args.seed, **_target_kwargs(args)}
     environment = suite.load(args.domain, args.task, task_kwargs=task_kwargs,
                              randomization=args.randomization, domain_kwargs=domain_kwargs)
@@ -256,7 +279,8 @@ def _run(args: argparse.Namespace) -> int:
         policy, name = _make_policy(args, environment)
         recorder = _video_recorder(args, environment)
         episode_recorder = _recorder(args, environment, name)
-        hooks = [recorder] if recorder is not None else []
+        film_after = recorder is not None and media_films_after_episode(environment)
+        hooks = [recorder] if recorder is not None and not film_after else []
         if args.realtime and args.domain not in REALTIME_DOMAIN_KWARGS:
             hooks.append(RealtimePacer())
         traces = []
@@ -268,6 +292,8 @@ def _run(args: argparse.Namespace) -> int:
                                              label=f"{name} on {args.domain}/{args.task}, seed {seed}",
                                              seed=seed)
                 traces.append(trace)
+                if film_after:  # hardware: rendered from the trace, never inside the loop
+                    recorder.film(trace, environment.control_frequency)
                 progress.advance_to((episode + 1) * environment.episode_steps)  # an early end skips ahead
                 end = "terminated" if trace.terminated else "time limit"
                 progress.write(f"episode {episode + 1} (seed {seed}): return {trace.episode_return:.1f}, "
@@ -309,8 +335,7 @@ def _add_run(commands) -> None:
     run.add_argument("--seed", type=int, default=0, help="seed of the first episode; then seed + 1, ... "
                                                          "(default: 0)")
     run.add_argument("--randomization", help="a preset (none, mild, moderate, sim2real) or a YAML file")
-    run.add_argument("--board", help="with qube_hardware: simulated (the substitute board, default) or "
-                                     "qube_servo2_usb (a real Qube through Quanser's SDK)")
+    _add_hardware_arguments(run)
     run.add_argument("--realtime", action="store_true",
                      help="keep to the wall clock: sleep in simulation, the substitute board's realtime "
                           "mode on qube_hardware")
@@ -382,7 +407,8 @@ def _eval(args: argparse.Namespace) -> int:
 
     policy = args.controller if args.policy is None else load_policy(args.policy)
     result = evaluate(policy, domain=args.domain, task=args.task, episodes=args.episodes,
-                      seed=args.seed, progress=not args.quiet, task_kwargs=_target_kwargs(args))
+                      seed=args.seed, progress=not args.quiet, task_kwargs=_target_kwargs(args),
+                      domain_kwargs=_hardware_domain_kwargs(args) or None)
     summary = result.to_dict()
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -410,6 +436,7 @@ def _add_eval(commands) -> None:
     evaluation.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
     evaluation.add_argument("--json", action="store_true", help="print the result as JSON")
     _add_target_arguments(evaluation)
+    _add_hardware_arguments(evaluation)
     _add_quiet(evaluation)
     evaluation.set_defaults(run=_eval)
 
@@ -432,7 +459,8 @@ def _add_bench(commands) -> None:
 
 
 SINGLE_RUN_OPTIONS = ("algo", "steps", "seed", "randomization", "domain", "num_envs", "init", "history",
-                      "target", "target_amplitude", "target_hold_time", "target_frequency", "target_angle")
+                      "device", "board", "target", "target_amplitude", "target_hold_time", "target_frequency",
+                      "target_angle")
 """`train` options that make one training run instead of the task's recipe."""
 
 
@@ -459,7 +487,7 @@ def _train(args: argparse.Namespace) -> int:
                    evaluations=args.evaluations, eval_episodes=args.eval_episodes,
                    checkpoints=args.checkpoints, init=args.init, progress=not args.quiet,
                    hyperparameters=None if args.history is None else {"history": args.history},
-                   task_kwargs=_target_kwargs(args))
+                   task_kwargs=_target_kwargs(args), domain_kwargs=_hardware_domain_kwargs(args) or None)
     print(f"trained {result.steps} steps in {result.wall_time:.0f} s; best evaluation return "
           f"{result.best_mean_return:.1f}; policy {result.policy} (logs in {result.directory})")
     return 0
@@ -505,6 +533,7 @@ def _add_train(commands) -> None:
     training.add_argument("--out", default=None, help="run directory (default: runs/ALGO_TASK_SEED; of a "
                           "recipe: runs/RECIPE, a subdirectory per stage)")
     _add_target_arguments(training)
+    _add_hardware_arguments(training)
     _add_quiet(training)
     training.set_defaults(run=_train)
 
@@ -578,7 +607,47 @@ def _add_calibrate(commands) -> None:
     calibrate.set_defaults(run=_calibrate)
 
 
-SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_train, _add_bench, _add_calibrate)
+
+
+# -- check-board ------------------------------------------------------------------------------
+
+
+def _check_board(args: argparse.Namespace) -> int:
+    from qube_suite.hardware.bringup import check_board
+
+    device = args.device or ("qube_servo3" if args.board == "qube_servo3_usb" else "qube_servo2")
+    checks = check_board(board=args.board or "simulated", device=device, identifier=args.identifier,
+                         interactive=not args.non_interactive)
+    failed = [check.name for check in checks if check.passed is False]
+    print(f"{len(checks) - len(failed)} of {len(checks)} checks passed or skipped"
+          + (f"; failed: {', '.join(failed)}" if failed else ""))
+    return 1 if failed else 0
+
+
+def _add_check_board(commands) -> None:
+    check = commands.add_parser(
+        "check-board", help="guided bring-up of a Qube: amplifier, LED, encoder signs, a small pulse",
+        description="Open the board and check the amplifier's enable and fault inputs, cycle the LED, "
+                    "ask you to turn the arm and the pendulum by hand and print the signs the encoders "
+                    "see, apply a 0.5 V pulse for 0.2 s (the arm must turn the positive way, the current "
+                    "must have the voltage's sign), compare the tachometer with the encoder's derivative, "
+                    "and close the board with the motor off. Exit code 1 if a check failed.",
+        epilog="examples:\n  qube-suite check-board --board qube_servo2_usb\n"
+               "  qube-suite check-board --board qube_servo3_usb\n"
+               "  qube-suite check-board --non-interactive     # the substitute board, no questions",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    check.add_argument("--board", default=None,
+                       help="simulated (the substitute, default), qube_servo2_usb or qube_servo3_usb")
+    check.add_argument("--device", choices=("qube_servo2", "qube_servo3"), default=None,
+                       help="which Qube (default: the one --board names, else qube_servo2)")
+    check.add_argument("--identifier", default="0", help="the board's number (default: 0)")
+    check.add_argument("--non-interactive", action="store_true",
+                       help="skip the steps that need a person at the Qube (LED colours, hand moves)")
+    check.set_defaults(run=_check_board)
+
+
+SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_train, _add_bench, _add_calibrate,
+               _add_check_board)
 """Parser builders of the subcommands, in the order `--help` lists them."""
 
 
@@ -593,13 +662,35 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@contextlib.contextmanager
+def _exit_cleanly_on_sigterm():
+    """Let SIGTERM (e.g. `kill`, a job scheduler) unwind like Ctrl-C while a command runs, so that
+    it closes its environment: on hardware the motor stops and the board closes. Python's default
+    would end the process at once, leaving a real board to its watchdog."""
+    import signal
+    import threading
+
+    def terminate(signum, frame):
+        raise SystemExit(128 + signum)
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line with `argv` (default: `sys.argv[1:]`); return the exit code."""
     from qube_suite.hardware.errors import HardwareError
 
     args = build_parser().parse_args(argv)
     try:
-        return args.run(args)
+        with _exit_cleanly_on_sigterm():
+            return args.run(args)
     except (ValueError, OSError, ImportError, HardwareError) as error:
         print(f"qube-suite: error: {' '.join(str(error).split())}", file=sys.stderr)  # one line
         return 2

@@ -12,6 +12,7 @@ from dm_env import specs
 
 from qube_suite import randomization as randomization_
 from qube_suite.arguments import is_number
+from qube_suite.tasks.base import voltage_from_action
 
 DEFAULT_CONTROL_FREQUENCY = 250.0
 """Control steps per second (Hz)."""
@@ -153,11 +154,19 @@ class Environment(control.Environment):
             observer.episode_started(self)
 
     def step(self, action) -> dm_env.TimeStep:
-        """Apply `action` for one control period and return the resulting `TimeStep`."""
+        """Apply `action` for one control period and return the resulting `TimeStep`.
+
+        After an episode's last step this starts the next episode, as dm_env does, but only for a
+        valid action: a bad one raises ValueError first and nothing moves."""
         if self._reset_next_step:
+            voltage_from_action(action, self._task.voltage_limit)
             return self.reset()
         reward, discount = self.advance(action)
-        observation = self._observation()
+        try:
+            observation = self._observation()
+        except BaseException:
+            self.stop_episode()
+            raise
         if discount is None:
             return dm_env.TimeStep(dm_env.StepType.MID, reward, 1.0, observation)
         return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, observation)
@@ -174,9 +183,21 @@ class Environment(control.Environment):
         task.before_step(action, physics)
         try:
             physics.step(self._n_sub_steps)
+            return self._finish_step(action)
         except BaseException:
-            self._reset_next_step = True
+            # Anything that fails here (reward, observation, an observer such as a recorder with a
+            # full disk, Ctrl-C) ends the episode and stops the motor before it propagates.
+            self.stop_episode()
             raise
+
+    def stop_episode(self) -> None:
+        """End the current episode now (the next `step` resets); on hardware the motor stops (0 V,
+        amplifier off). What a step that fails after moving the Qube does before it raises."""
+        self._reset_next_step = True
+        self._physics.end_episode()
+
+    def _finish_step(self, action) -> tuple[float, float | None]:
+        physics, task = self._physics, self._task
         self._step_count += 1
         if physics.physics_error is not None:
             self._reset_next_step = True

@@ -128,12 +128,23 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
             `suite.load` (e.g. `domain_kwargs={"plant": {...}}` for the hardware substitute).
         progress: show progress on stderr (`qube_suite.progress`: a bar on a terminal,
             a line per 10 % otherwise).
+
+    The environment is closed at the end, also when the policy raises or Ctrl-C lands: on
+    hardware the motor stops and the board closes.
     """
     if not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes must be a positive integer, got {episodes!r}")
     environment = suite.load(domain, task, task_kwargs={"random": seed, **(task_kwargs or {})},
                              environment_kwargs=environment_kwargs, randomization=randomization,
                              domain_kwargs=domain_kwargs)
+    try:  # on hardware, whatever happens, the motor stops and the board closes
+        return _evaluate(policy, environment, domain, task, episodes, seed, progress)
+    finally:
+        environment.close()
+
+
+def _evaluate(policy, environment, domain: str, task: str, episodes: int, seed: int,
+              progress: bool) -> EvaluationResult:
     name = policy if isinstance(policy, str) else getattr(policy, "name", type(policy).__name__)
     if isinstance(policy, str):
         policy = policy_for(policy, environment)

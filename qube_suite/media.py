@@ -180,16 +180,37 @@ class VideoRecorder:
         self.writer: VideoWriter | None = None
 
     def __call__(self, step: int, environment: Any) -> None:
-        rate = environment.control_frequency
-        fps = rate if self.fps is None else self.fps
-        if fps > rate + 1e-9:
-            raise ValueError(f"fps {fps:g} exceeds the control rate of {rate:g} Hz: there are no more "
-                             "frames than control steps")
-        if not frame_due(step, rate, fps):
+        fps = self._fps(environment.control_frequency)
+        if not frame_due(step, environment.control_frequency, fps):
             return
         if self.writer is None:
             self.writer = VideoWriter(self.path, fps)
         self.writer.append(self.renderer.render(environment.physics))
+
+    def film(self, trace: EpisodeTrace, control_frequency: float) -> None:
+        """Film an episode from its trace (measured states and LED colours) after it has run: how
+        hardware episodes are filmed, since rendering takes longer than a sample."""
+        from qube_suite.domains import qube
+
+        fps = self._fps(control_frequency)
+        twin = qube.make_physics(control_frequency)
+        try:
+            for step in range(len(trace.time)):
+                if frame_due(step, control_frequency, fps):
+                    twin.reset_to(trace.state[step])
+                    twin.set_led(trace.led[step])
+                    if self.writer is None:
+                        self.writer = VideoWriter(self.path, fps)
+                    self.writer.append(self.renderer.render(twin))
+        finally:
+            twin.close()
+
+    def _fps(self, rate: float) -> float:
+        fps = rate if self.fps is None else self.fps
+        if fps > rate + 1e-9:
+            raise ValueError(f"fps {fps:g} exceeds the control rate of {rate:g} Hz: there are no more "
+                             "frames than control steps")
+        return fps
 
     @property
     def frames(self) -> int:
@@ -216,10 +237,23 @@ def record_video(environment: Any, policy: Policy, path: str | os.PathLike, epis
     `suite.load`, any domain) and film them into the mp4 `path`; return their traces.
 
     `fps`: frames per second (None: the control rate); `camera`, `width`, `height`:
-    as `FrameRenderer`. Needs the `media` extra.
+    as `FrameRenderer`. Needs the `media` extra. On hardware the frames are rendered from each
+    episode's trace after it has run, never inside the control loop.
     """
     with VideoRecorder(path, fps, camera, width, height) as recorder:
-        return [run_episode(environment, policy, hooks=[recorder]) for _ in range(episodes)]
+        if not films_after_episode(environment):
+            return [run_episode(environment, policy, hooks=[recorder]) for _ in range(episodes)]
+        traces = []
+        for _ in range(episodes):
+            traces.append(run_episode(environment, policy))
+            recorder.film(traces[-1], environment.control_frequency)
+        return traces
+
+
+def films_after_episode(environment: Any) -> bool:
+    """True if `environment`'s episodes must be filmed from their traces after they have run
+    (hardware, where rendering inside the loop would miss samples)."""
+    return bool(getattr(environment.physics, "paced_by_board", False))
 
 
 def write_video(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: float) -> int:

@@ -18,6 +18,7 @@ from qube_suite.hardware import (
     WatchdogExpiredError,
     conventions,
 )
+from qube_suite.hardware.quanser import REST_CHECK_TIME
 
 
 def assert_motor_off(board):
@@ -41,11 +42,13 @@ def test_entering_zeroes_enables_and_starts_sampling():
     with QubeServo2() as qube:
         board = qube.board
         assert board.is_valid() and board.amplifier_enabled and board.applied_voltage == 0.0
+        start = board.time                                            # after 0.2 s of checking for rest
+        assert start == pytest.approx(REST_CHECK_TIME, abs=0.005) and qube.encoders_zeroed
         currents, encoders, others = qube.action(1.0)
-        assert encoders.tolist() == [0, 0] and board.time == 0.0      # the first sample, at the start
+        assert encoders.tolist() == [0, 0] and board.time == pytest.approx(start + 0.004, abs=1e-9)
         assert board.applied_voltage == 1.0
         qube.action(1.0)
-        assert board.time == pytest.approx(0.004, abs=1e-12)
+        assert board.time == pytest.approx(start + 0.008, abs=1e-9)
         for _ in range(25):
             _, encoders, _ = qube.action(1.0)
         assert encoders[0] > 0                                        # positive volts count the arm up
@@ -118,12 +121,13 @@ def test_amplifier_fault_stops_the_motor():
 
 def test_stall_stops_the_motor():
     with QubeServo2(plant={"arm_friction": 1.0, "stall_time": 0.2}) as qube:
+        start = qube.board.time
         with pytest.raises(MotorStallError):
-            for _ in range(100):
+            for step in range(100):
                 qube.action(8.0)
-                assert qube.stall_warning or qube.board.time == 0.0
+                assert qube.stall_warning or step == 0
         assert_motor_off(qube.board)
-        assert qube.board.time == pytest.approx(0.2, abs=0.01)
+        assert qube.board.time - start == pytest.approx(0.2, abs=0.01)
 
 
 def test_arm_beyond_its_limit_stops_the_motor():

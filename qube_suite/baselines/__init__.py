@@ -49,10 +49,14 @@ def make(name: str, **kwargs) -> Controller:
 
 def for_environment(name: str, environment, **kwargs) -> Controller:
     """The controller called `name` for a suite `environment`: built for its control frequency,
-    its task's voltage limit and its domain's `latency_steps`; `kwargs` add or override settings."""
+    its task's voltage limit and its domain's `latency_steps` (and, on hardware, the device's motor
+    data: `physics.design_parameters()`); `kwargs` add or override settings."""
     settings = {"control_frequency": environment.control_frequency,
                 "voltage_limit": environment.task.voltage_limit,
                 "latency_steps": environment.physics.latency_steps}
+    design = getattr(environment.physics, "design_parameters", None)  # e.g. a Qube-Servo 3's motor
+    if design is not None and name in CONTROLLERS and "parameters" in keywords_of(CONTROLLERS[name]):
+        settings["parameters"] = design()
     return make(name, **{**settings, **kwargs})
 
 

@@ -36,6 +36,7 @@ What differs from the simulated domain, as on a real Qube:
 
 from __future__ import annotations
 
+import gc
 import math
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -51,7 +52,11 @@ from qube_suite.domains.interface import MeasuredState
 from qube_suite.hardware import conventions
 from qube_suite.hardware.errors import EncoderGlitchError, HardwareError
 from qube_suite.hardware.estimation import StateEstimator
-from qube_suite.hardware.quanser import SIMULATED, QubeServo2
+from qube_suite.hardware.plant import BOARD_MOTORS
+from qube_suite.hardware.quanser import DEVICES, SIMULATED, QuanserWrapper
+
+RESET_CONTROLLERS = ("dampen", "swingup")
+"""The controllers that reach the episodes' starts; built before the board samples."""
 
 RESET_LED = (1.0, 1.0, 0.0)
 """Yellow: a reset controller is driving."""
@@ -66,12 +71,64 @@ NEAR_GOAL = math.radians(30.0)
 """Starts within 30 degrees of upright are reached by swing-up and hold; within 30
 degrees of hanging, by settling; others by pumping energy."""
 
+WILD_SWING = 3.0
+"""Pendulum speed (rad/s) above which an upright start first settles the pendulum hanging: the
+swing-up catches a pendulum that starts near rest, not one swinging wildly."""
+
 HOLD_TIME = 0.5
 """A reset is done when its condition has held this long (s)."""
+
+ARM_CENTRE_TOLERANCE = math.radians(5.0)
+"""With the encoder check on, a hanging reset also centres the arm to within 5 degrees of the zero
+set at open() (the reset controllers leave it within about 1 degree on the substitute)."""
+
+PENDULUM_REST_TOLERANCE = 2
+"""Encoder counts: with the encoder check on, the pendulum hanging at rest must read pi to within two
+counts: its Coulomb friction stops it within a count of hanging, and the zero was itself set at such
+a rest, within a count of hanging. More means its zero is lost."""
+
+
+class _FullCollectionsHeld:
+    """Python's full (oldest-generation) garbage collections held off while a board drives.
+
+    A full collection stops the program for as long as its heap takes to scan (up to 0.1 s in
+    a process that has loaded MuJoCo and torch): longer than a sample, enough to trip the
+    missed-sample stop or the watchdog. While any board drives, the oldest generation's
+    threshold is raised out of reach (young generations, which are fast, still collect); when
+    the last one idles, the threshold comes back and a full collection runs while the motor is
+    off.
+    """
+
+    def __init__(self):
+        self.holders: set[int] = set()
+        self.threshold: int | None = None
+
+    def hold(self, holder: object) -> None:
+        if not self.holders:
+            young, middle, self.threshold = gc.get_threshold()
+            gc.set_threshold(young, middle, 2**31 - 1)
+        self.holders.add(id(holder))
+
+    def release(self, holder: object) -> None:
+        if id(holder) not in self.holders:
+            return
+        self.holders.discard(id(holder))
+        if not self.holders:
+            young, middle, _ = gc.get_threshold()
+            gc.set_threshold(young, middle, self.threshold)
+            gc.collect()
+
+
+FULL_COLLECTIONS = _FullCollectionsHeld()
 
 
 class ResetError(HardwareError):
     """A reset controller did not reach the episode's start in time."""
+
+
+class EncoderCheckError(HardwareError):
+    """Between episodes, the pendulum hung at rest but its encoder did not read hanging: the encoder's
+    zero is lost (missed counts, or the board was opened with the pendulum swinging)."""
 
 
 class Physics(MeasuredState, control.Physics):
@@ -79,18 +136,30 @@ class Physics(MeasuredState, control.Physics):
 
     Args:
         control_frequency: sample rate of the board (Hz); one `step` is one sample.
-        board: "simulated" (the substitute) or "qube_servo2_usb" (a real Qube).
+        device: "qube_servo2" or "qube_servo3": which Qube (its channels, its motor data in the
+            substitute's plant and in the model of the reset controllers). Default: the one
+            `board` names, else "qube_servo2".
+        board: "simulated" (the substitute) or the device's card type, "qube_servo2_usb" or
+            "qube_servo3_usb" (a real Qube).
         plant: parameters of the substitute's plant (`qube_suite.hardware.plant`).
         realtime: pace the substitute by the wall clock (a real board always is).
         max_voltage: the wrapper's voltage clip (V).
         reset_voltage_limit: largest voltage of the reset controllers (V).
         reset_timeout: longest a reset may take (s).
         identifier: the board's number.
+        check_encoders: at each reset that settles the pendulum hanging, centre the arm to within
+            `ARM_CENTRE_TOLERANCE` (5 degrees) and check that the pendulum, hanging at rest, reads
+            pi to within `PENDULUM_REST_TOLERANCE` (one count); else raise `EncoderCheckError`
+            (`ResetError` if the arm cannot be centred). Default True.
     """
 
     latency_steps = 1
     """A step reads the next sample, then writes its voltage: the voltage acts one sample after the
     observation it answers (`interface.QubePhysics.latency_steps`)."""
+
+    paced_by_board = True
+    """The board's clock paces every step: nothing slower than a sample (rendering, plotting) may
+    run inside the loop; videos are filmed from the recorded trace after an episode."""
 
     physics_error = None
     """Always None: faults on hardware raise instead (see the README's safety table)."""
@@ -98,20 +167,35 @@ class Physics(MeasuredState, control.Physics):
     def __init__(self, control_frequency: float = 250.0, board: str = SIMULATED,
                  plant: dict[str, float] | None = None, realtime: bool | None = None,
                  max_voltage: float = 10.0, reset_voltage_limit: float = DEFAULT_RESET_VOLTAGE_LIMIT,
-                 reset_timeout: float = DEFAULT_RESET_TIMEOUT, identifier: str = "0"):
+                 reset_timeout: float = DEFAULT_RESET_TIMEOUT, identifier: str = "0",
+                 device: str | None = None, check_encoders: bool = True):
+        if not isinstance(check_encoders, bool):
+            raise TypeError(f"check_encoders must be True or False, got {check_encoders!r}")
+        self._check_encoders = check_encoders
+        if device is None:
+            device = next((name for name, d in DEVICES.items() if d.board_type == board), "qube_servo2")
+        if device not in DEVICES:
+            raise ValueError(f"unknown device {device!r}; valid: {', '.join(DEVICES)}")
+        for name, value in (("max_voltage", max_voltage), ("reset_voltage_limit", reset_voltage_limit),
+                            ("reset_timeout", reset_timeout)):
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+                raise TypeError(f"{name} must be a number, got {value!r}")
         if not (0.0 < reset_voltage_limit <= max_voltage):
             raise ValueError(f"reset_voltage_limit must be in (0, max_voltage={max_voltage}] V, "
                              f"got {reset_voltage_limit}")
         if not (math.isfinite(reset_timeout) and reset_timeout > 0.0):
             raise ValueError(f"reset_timeout must be a positive number of seconds, got {reset_timeout}")
-        self.qube = QubeServo2(frequency=control_frequency, max_voltage=max_voltage, board=board,
-                               identifier=identifier, plant=plant, realtime=realtime)
+        self.device = device
+        self.qube = QuanserWrapper(DEVICES[device], board, identifier, frequency=control_frequency,
+                                   max_voltage=max_voltage, plant=plant, realtime=realtime)
+        self._motor = dict(BOARD_MOTORS[DEVICES[device].board_type])
         self._frequency = float(control_frequency)
         self._estimator = StateEstimator(control_frequency)
         self._reset_voltage_limit = float(reset_voltage_limit)
         self._reset_timeout = float(reset_timeout)
         self._controllers: dict[str, baselines.Controller] = {}
-        self._model = RigidBodyModel.from_parameters()
+        self._model = RigidBodyModel.from_parameters(self._motor)
+        self._closed = False
         self._voltage = 0.0
         self._applied = 0.0
         self._led: tuple[float, float, float] = RESET_LED
@@ -125,7 +209,7 @@ class Physics(MeasuredState, control.Physics):
         self._twin = None
         self.currents = np.zeros(1)
         self.encoders = np.zeros(2, dtype=np.int32)
-        self.others = np.zeros(1)
+        self.others = np.zeros(len(DEVICES[device].other_inputs))
 
     # -- the domain interface ---------------------------------------------------------------
 
@@ -145,10 +229,14 @@ class Physics(MeasuredState, control.Physics):
 
     def raw_readings(self) -> dict[str, float]:
         """The board's readings of the last sample in board units and signs: motor current (A),
-        encoder counts, tachometer (counts/s), and the missed samples since the board opened."""
-        return {"current": float(self.currents[0]), "encoder_arm": int(self.encoders[0]),
-                "encoder_pendulum": int(self.encoders[1]), "tachometer": float(self.others[0]),
-                "missed_samples": self.qube.missed_samples}
+        encoder counts, tachometer (counts/s; on a Qube-Servo 3 also the pendulum's), and the
+        missed samples since the board opened."""
+        readings = {"current": float(self.currents[0]), "encoder_arm": int(self.encoders[0]),
+                    "encoder_pendulum": int(self.encoders[1]), "tachometer": float(self.others[0]),
+                    "missed_samples": self.qube.missed_samples}
+        if len(self.others) > 1:
+            readings["pendulum_tachometer"] = float(self.others[1])
+        return readings
 
     def motor_current(self) -> float:
         """Motor current (A) measured by the board at the last sample."""
@@ -195,14 +283,25 @@ class Physics(MeasuredState, control.Physics):
         self._actuator_model = actuator_model
 
     def reset(self) -> None:
-        """Get the board ready for an episode: open it the first time, else wake it from idle."""
+        """Get the board ready for an episode: open it the first time, else wake it from idle.
+
+        The reset controllers are built before the board samples, so nothing slower than a
+        sample runs while it drives. An episode that was left running (abandoned, or ended by
+        a wrapper's time limit) is idled first. Raises RuntimeError after `close()`.
+        """
+        if self._closed:
+            raise RuntimeError("this hardware environment was closed and its board released; make a new one")
+        self._prepare_controllers()
+        if self.qube.is_open and not self.qube.is_idle:
+            self.end_episode()
+        FULL_COLLECTIONS.hold(self)
         try:
             if not self.qube.is_open:
                 self.qube.open()
                 self._estimator.reset()
                 self._sample(0.0)
                 self._measured = self._estimate
-            elif self.qube.is_idle:
+            else:
                 self.qube.resume()
         except BaseException as error:
             self._stop_after(error)
@@ -218,9 +317,14 @@ class Physics(MeasuredState, control.Physics):
         self._led = RESET_LED
         try:
             if abs(target_alpha) <= NEAR_GOAL:
+                if abs(self._estimate[3]) > WILD_SWING:  # e.g. still falling from the last run: calm it first
+                    self._drive("dampen", self._hanging_at_rest, "settle hanging")
                 self._drive("swingup", self._held_upright, "swing up and hold upright")
             else:
                 self._drive("dampen", self._hanging_at_rest, "settle hanging")
+                if self._check_encoders:
+                    self._drive("dampen", self._centred_at_rest, "centre the arm")
+                    self._check_pendulum_zero()
                 if math.pi - abs(target_alpha) > NEAR_GOAL:
                     energy = self._model.energy(target_alpha, float(state[2]), float(state[3]))
                     self._drive("swingup", lambda s: self._model.energy(s[1], s[2], s[3]) >= energy,
@@ -236,22 +340,48 @@ class Physics(MeasuredState, control.Physics):
 
     def end_episode(self) -> None:
         """Stop driving until the next reset: 0 V, amplifier disabled."""
-        if self.qube.is_open and not self.qube.is_idle:
-            self.qube.idle()
+        try:
+            if self.qube.is_open and not self.qube.is_idle:
+                self.qube.idle()
+        finally:
+            FULL_COLLECTIONS.release(self)
 
     def drawable(self):
         """The simulated Qube put in the measured state with the LED's colour: a digital twin."""
+        twin = self._digital_twin()
+        twin.reset_to(self._estimate)
+        twin.set_led(self._led)
+        return twin.drawable()
+
+    def _digital_twin(self):
         if self._twin is None:
             from qube_suite.domains import qube
 
-            self._twin = qube.make_physics(self._frequency)
-        self._twin.reset_to(self._estimate)
-        self._twin.set_led(self._led)
-        return self._twin.drawable()
+            self._twin = qube.make_physics(self._frequency, self._motor)
+        return self._twin
+
+    def design_parameters(self) -> dict[str, float]:
+        """Physical parameters (long names) that differ from the nominal Qube-Servo 2 for this
+        device (a Qube-Servo 3's motor): what controllers for it are designed with."""
+        return dict(self._motor)
+
+    @property
+    def model(self):
+        """The digital twin's `MjModel` (the simulated Qube drawn by `drawable()`), for dm_control
+        tools that read a physics' model (element names, cameras)."""
+        return self._digital_twin().model
+
+    def free(self) -> None:
+        """Stop the motor and close the board: what shimmy's and dm_control's `close()` call."""
+        self.close()
 
     def close(self) -> None:
-        """Stop the motor and close the board."""
-        self.qube.close()
+        """Stop the motor and close the board, for good: a later `reset` raises."""
+        self._closed = True
+        try:
+            self.qube.close()
+        finally:
+            FULL_COLLECTIONS.release(self)
         if self._twin is not None:
             self._twin.close()
             self._twin = None
@@ -265,16 +395,19 @@ class Physics(MeasuredState, control.Physics):
         """Leave the motor stopped after `error`: the board idles (0 V, amplifier disabled), or is
         closed after an encoder glitch (the next reset reopens it and zeroes the encoders)."""
         qube = self.qube
-        if not qube.is_open:
-            return
-        if isinstance(error, EncoderGlitchError):
-            qube.close()
-        elif not qube.is_idle:
-            try:
-                qube.idle()
-            except BaseException:
+        try:
+            if not qube.is_open:
+                return
+            if isinstance(error, EncoderGlitchError):
                 qube.close()
-                raise
+            elif not qube.is_idle:
+                try:
+                    qube.idle()
+                except BaseException:
+                    qube.close()
+                    raise
+        finally:
+            FULL_COLLECTIONS.release(self)
 
     def _sample(self, volts: float) -> None:
         self.currents, self.encoders, self.others = self.qube.action(
@@ -285,11 +418,17 @@ class Physics(MeasuredState, control.Physics):
         self._estimate = (theta, alpha, dtheta, dalpha)
         self._samples += 1
 
+    def _prepare_controllers(self) -> None:
+        """Build the reset controllers (designing them takes longer than a sample) while the board
+        is closed or idle."""
+        for name in RESET_CONTROLLERS:
+            if name not in self._controllers:
+                self._controllers[name] = baselines.make(name, control_frequency=self._frequency,
+                                                         voltage_limit=self._reset_voltage_limit,
+                                                         latency_steps=self.latency_steps,
+                                                         parameters=self._motor)
+
     def _controller(self, name: str) -> baselines.Controller:
-        if name not in self._controllers:
-            self._controllers[name] = baselines.make(name, control_frequency=self._frequency,
-                                                     voltage_limit=self._reset_voltage_limit,
-                                                     latency_steps=self.latency_steps)
         return self._controllers[name]
 
     def _drive(self, name: str, done: Callable[[tuple], bool], purpose: str, hold: float = HOLD_TIME) -> None:
@@ -311,6 +450,22 @@ class Physics(MeasuredState, control.Physics):
     def _held_upright(state: tuple) -> bool:
         theta, alpha, dtheta, dalpha = state
         return abs(alpha) < math.radians(5) and abs(theta) < math.radians(15) and abs(dalpha) < 1.0
+
+    def _check_pendulum_zero(self) -> None:
+        counts = (math.pi - abs(self._estimate[1])) / conventions.RADIANS_PER_COUNT
+        if counts > PENDULUM_REST_TOLERANCE + 1e-6:
+            self._sample(0.0)
+            raise EncoderCheckError(
+                f"the pendulum hangs at rest but its encoder reads {counts:.0f} counts from hanging (at most "
+                f"{PENDULUM_REST_TOLERANCE} allowed): its zero is lost. Close the environment, let the "
+                "pendulum hang still, centre the arm and make a new one (opening zeroes the encoders); "
+                "domain_kwargs={'check_encoders': False} turns this check off")
+
+    @staticmethod
+    def _centred_at_rest(state: tuple) -> bool:
+        theta, alpha, dtheta, dalpha = state
+        return (abs(theta) < ARM_CENTRE_TOLERANCE and math.pi - abs(alpha) < math.radians(3)
+                and abs(dalpha) < 0.3 and abs(dtheta) < 0.3)
 
     @staticmethod
     def _hanging_at_rest(state: tuple) -> bool:

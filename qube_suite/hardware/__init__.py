@@ -14,6 +14,7 @@ filtered velocities from encoder counts), `errors` (safety stops).
 from qube_suite.hardware.errors import (
     AmplifierFaultError,
     ArmLimitError,
+    BoardIOError,
     BoardOpenError,
     EncoderGlitchError,
     HardwareError,
@@ -25,6 +26,7 @@ from qube_suite.hardware.errors import (
 )
 from qube_suite.hardware.estimation import StateEstimator, VelocityFilter
 from qube_suite.hardware.quanser import (
+    DEVICES,
     QUBE_SERVO_2,
     QUBE_SERVO_3,
     Device,
@@ -34,7 +36,8 @@ from qube_suite.hardware.quanser import (
 )
 
 __all__ = [
-    "QUBE_SERVO_2", "QUBE_SERVO_3", "AmplifierFaultError", "ArmLimitError", "BoardOpenError", "Device",
+    "DEVICES", "QUBE_SERVO_2", "QUBE_SERVO_3", "AmplifierFaultError", "ArmLimitError", "BoardIOError",
+    "BoardOpenError", "Device",
     "EncoderGlitchError", "HardwareError",
     "MissedSamplesError", "MotorStallError", "QuanserSDKNotFoundError", "QuanserWrapper", "QubeServo2",
     "QubeServo3", "SafetyStopError", "StateEstimator", "VelocityFilter", "WatchdogExpiredError",

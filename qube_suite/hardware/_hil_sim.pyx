@@ -16,7 +16,8 @@ Channels (Qube-Servo 2 and 3; signs and offsets in `conventions.py`):
 analog output 0 = motor voltage (V); digital output 0 = amplifier enable;
 encoder inputs 0 = arm, 1 = pendulum (2048 counts/rev, 0 at power-up, where the
 plant starts hanging at rest); analog input 0 = motor current (A); other input
-14000 = tachometer (arm speed, counts/s); other outputs 11000-11002 = LED red,
+14000 = tachometer (arm speed, counts/s), and on a Qube-Servo 3 other input 14001 =
+pendulum tachometer (counts/s); other outputs 11000-11002 = LED red,
 green, blue (0..1); digital inputs 0 = amplifier fault, 1 = stall detected,
 2 = stall error.
 
@@ -100,6 +101,13 @@ BOARD_TYPES = ("qube_servo2_usb", "qube_servo3_usb")
 ANALOG_CURRENT = 0
 DIGITAL_ENABLE = 0
 OTHER_TACHOMETER = 14000
+OTHER_PENDULUM_TACHOMETER = 14001
+OTHER_INPUTS = (OTHER_TACHOMETER, OTHER_PENDULUM_TACHOMETER)
+PENDULUM_TACHOMETER_CARDS = ("qube_servo3_usb",)
+"""Cards with a pendulum tachometer (other input 14001)."""
+DIVERGENCE_SPEED = 1.0e4
+"""A plant turning faster than this (rad/s), or not finite, has diverged."""
+cdef double _DIVERGENCE_SPEED = DIVERGENCE_SPEED
 OTHER_LED = (11000, 11001, 11002)
 
 # Error codes of the substitute (its own numbers, not Quanser's).
@@ -114,6 +122,7 @@ BUFFER_OVERFLOW = -8
 WATCHDOG_EXPIRED = -9
 TOO_MANY_SAMPLES = -10
 BOARD_NOT_FOUND = -11
+PLANT_DIVERGED = -12
 
 _UNPLUGGED = set()
 """Identifiers of the substitute boards that `unplug` disconnected."""
@@ -196,7 +205,7 @@ cdef struct Plant:
     double x[5]         # theta, alpha (unwrapped), dtheta, dalpha, motor current; package signs
     double t            # simulated time (s)
     double stall_timer
-    bint stall_detected, stall_error, fault, arm_blocked
+    bint stall_detected, stall_error, fault, arm_blocked, diverged
 
 cdef struct Outputs:
     double analog       # analog output 0 as written (V, board sign)
@@ -214,6 +223,7 @@ cdef struct Sample:
     int encoder[2]
     signed char digital[3]
     double tachometer   # counts/s
+    double pendulum_tachometer  # counts/s
 
 cdef struct Sampler:
     bint running
@@ -394,7 +404,7 @@ cdef class Task:
     cdef int analog[1]
     cdef int encoder[2]
     cdef int digital[3]
-    cdef int other[1]
+    cdef int other[2]
     cdef int n_analog, n_encoder, n_digital, n_other
     cdef long samples_in_buffer
     cdef int overflow_mode
@@ -423,7 +433,7 @@ cdef class HIL:
     cdef double wall_origin
     cdef bint realtime_, is_open
     cdef object lock, plant_overrides, plant_values, card_type, running_task
-    cdef object read_failure
+    cdef object read_failure, options_
     cdef long reads_before_failure
 
     def __cinit__(self):
@@ -468,6 +478,20 @@ cdef class HIL:
             self.wall_origin = time.perf_counter() - self.s.t
             self.is_open = True
 
+    def set_card_specific_options(self, options, max_length):
+        """Card options ("name=value;..."), as Quanser's Qube-Servo 3 code sets them; kept in
+        `card_options` (the substitute's plant does not model them)."""
+        if not isinstance(options, str) or len(options) >= int(max_length):
+            raise HILError(INVALID_ARGUMENT, f"options must be a string shorter than {max_length}")
+        with self.lock:
+            self._require_open()
+            self.options_ = options
+
+    @property
+    def card_options(self):
+        """The card options last set ("" if none)."""
+        return self.options_ or ""
+
     def is_valid(self):
         """True while the board is open."""
         return bool(self.is_open)
@@ -511,10 +535,11 @@ cdef class HIL:
 
     def read_other(self, channels, num_channels, double[::1] buffer):
         """Read the tachometer (counts/s) now into `buffer`."""
-        cdef list chans = _channels(channels, num_channels, _length_d(buffer), "other input", (OTHER_TACHOMETER,))
+        cdef list chans = _channels(channels, num_channels, _length_d(buffer), "other input", OTHER_INPUTS)
+        self._check_other_inputs(chans)
         cdef Sample sample = self._read_now()
-        for j in range(len(chans)):
-            buffer[j] = sample.tachometer
+        for j, c in enumerate(chans):
+            buffer[j] = sample.tachometer if c == OTHER_TACHOMETER else sample.pendulum_tachometer
 
     def write_analog(self, channels, num_channels, const double[::1] buffer):
         """Set the motor voltage (V); the amplifier applies it within its limit while enabled."""
@@ -566,9 +591,10 @@ cdef class HIL:
         analog = _channels(analog_channels, num_analog_channels, -1, "analog input", (ANALOG_CURRENT,))
         encoder = _channels(encoder_channels, num_encoder_channels, -1, "encoder", (0, 1))
         digital = _channels(digital_channels, num_digital_channels, -1, "digital input", (0, 1, 2))
-        other = _channels(other_channels, num_other_channels, -1, "other input", (OTHER_TACHOMETER,))
+        other = _channels(other_channels, num_other_channels, -1, "other input", OTHER_INPUTS)
+        self._check_other_inputs(other)
         for name, chans, capacity in (("analog", analog, 1), ("encoder", encoder, 2), ("digital", digital, 3),
-                                      ("other", other, 1)):
+                                      ("other", other, 2)):
             if len(chans) > capacity or len(set(chans)) != len(chans):
                 raise HILError(INVALID_CHANNEL, f"repeated {name} channels in {chans}")
         task.n_analog, task.n_encoder, task.n_digital, task.n_other = (
@@ -657,6 +683,7 @@ cdef class HIL:
                 raise HILError(TOO_MANY_SAMPLES, f"can read 1 to {self.smp.capacity} samples, not {n}")
             if not self._wait_for_samples(n):
                 return 0
+            self._require_finite()
             if self.smp.overflow_pending:
                 self.smp.overflow_pending = False
                 raise HILError(BUFFER_OVERFLOW, "the task buffer overflowed: samples were not read in time")
@@ -671,7 +698,8 @@ cdef class HIL:
                     c = task.digital[j]
                     digital_buffer[k * task.n_digital + j] = sample.digital[c]
                 for j in range(task.n_other):
-                    other_buffer[k * task.n_other + j] = sample.tachometer
+                    other_buffer[k * task.n_other + j] = (
+                        sample.tachometer if task.other[j] == OTHER_TACHOMETER else sample.pendulum_tachometer)
                 self.smp.head = (self.smp.head + 1) % self.smp.capacity
                 self.smp.count -= 1
         return n
@@ -781,6 +809,7 @@ cdef class HIL:
         """[theta, alpha, dtheta, dalpha] of the plant (rad, rad/s), angles wrapped to (-pi, pi]."""
         with self.lock:
             self._sync()
+            self._require_finite()
             return np.array([wrap_angle(self.s.x[0]), wrap_angle(self.s.x[1]), self.s.x[2], self.s.x[3]])
 
     def set_true_state(self, state):
@@ -910,6 +939,10 @@ cdef class HIL:
 
     cdef void _sample(self, Sample* sample) noexcept nogil:
         cdef double positions[2]
+        if self.s.diverged:                                 # nothing to cast to counts: the read raises
+            sample.current = sample.tachometer = sample.pendulum_tachometer = 0.0
+            sample.encoder[0] = sample.encoder[1] = 0
+            return
         self._encoder_positions(positions)
         sample.current = ARM_SIGN * self.s.x[4]
         sample.encoder[0] = self.encoder_offset[0] + <int>floor(positions[0])
@@ -918,6 +951,7 @@ cdef class HIL:
         sample.digital[_STALL_DETECTED] = self.s.stall_detected
         sample.digital[_STALL_ERROR] = self.s.stall_error
         sample.tachometer = ARM_SIGN * self.s.x[2] * COUNTS_PER_RADIAN
+        sample.pendulum_tachometer = PENDULUM_SIGN * self.s.x[3] * COUNTS_PER_RADIAN
 
     cdef Sample _read_now(self) except *:
         """The present sample of an open board (the immediate reads)."""
@@ -925,6 +959,7 @@ cdef class HIL:
         with self.lock:
             self._require_open()
             self._sync()
+            self._require_finite()
             self._sample(&sample)
         return sample
 
@@ -950,7 +985,13 @@ cdef class HIL:
         """Integrate `substeps` substeps, expiring the watchdog and taking samples when due."""
         cdef long k
         for k in range(substeps):
-            _substep(&self.p, &self.s, self._applied(), self._amplifier_on(), self.h)
+            if self.s.diverged:
+                self.s.t += self.h
+            else:
+                _substep(&self.p, &self.s, self._applied(), self._amplifier_on(), self.h)
+                if not (fabs(self.s.x[2]) <= _DIVERGENCE_SPEED and fabs(self.s.x[3]) <= _DIVERGENCE_SPEED
+                        and fabs(self.s.x[0]) <= 1e6 and fabs(self.s.x[1]) <= 1e6 and fabs(self.s.x[4]) <= 1e6):
+                    self.s.diverged = True
             if self.wd.running and not self.wd.expired and self.s.t >= self.wd.deadline - 1e-12:
                 self.wd.expired = True
                 self.out.analog = self.wd.analog_state
@@ -1006,6 +1047,18 @@ cdef class HIL:
             task.overflow_mode = BufferOverflowMode.ERROR_ON_OVERFLOW
             task.board = self
         return task
+
+    cdef int _require_finite(self) except -1:
+        if self.s.diverged:
+            raise HILError(PLANT_DIVERGED, "the substitute's plant diverged (its state left the finite range or "
+                                           f"turned faster than {DIVERGENCE_SPEED:g} rad/s): check its parameters")
+        return 0
+
+    cdef int _check_other_inputs(self, list chans) except -1:
+        if OTHER_PENDULUM_TACHOMETER in chans and self.card_type not in PENDULUM_TACHOMETER_CARDS:
+            raise HILError(INVALID_CHANNEL, f"other input {OTHER_PENDULUM_TACHOMETER} (pendulum tachometer) "
+                                            f"exists on {', '.join(PENDULUM_TACHOMETER_CARDS)} only")
+        return 0
 
     cdef int _require_open(self) except -1:
         if not self.is_open:

@@ -3,9 +3,10 @@
 Every safety stop of `QuanserWrapper` writes 0 V to the motor, disables the
 amplifier and stops the watchdog first (the board idles until `resume()`), and
 then raises one of the `SafetyStopError` subclasses below; none of them is
-printed and ignored. A board that cannot be opened raises `BoardOpenError`.
-Other errors of the board itself are the board's own exception class
-(`quanser.hardware.HILError`, or `HILError` of the substitute board).
+printed and ignored. A board that cannot be opened raises `BoardOpenError`; a
+board error while setting it up or reading a sample raises `BoardIOError`, with
+the text of Quanser's `get_error_message()`, chained to the board's own
+exception (`quanser.hardware.HILError`, or `HILError` of the substitute board).
 """
 
 from __future__ import annotations
@@ -21,6 +22,11 @@ class QuanserSDKNotFoundError(HardwareError, ImportError):
 
 class BoardOpenError(HardwareError):
     """The board could not be opened (not connected, not powered, or in use); nothing was driven."""
+
+
+class BoardIOError(HardwareError):
+    """The board reported an error while it was set up or read (Quanser's error text in the message);
+    the wrapper stopped the motor first, as for a safety stop."""
 
 
 class SafetyStopError(HardwareError):

@@ -9,9 +9,13 @@ real one (`board="qube_servo2_usb"`), which it drives through Quanser's Python H
 API (`quanser.hardware`, imported only then). Nothing is opened before
 `__enter__`/`open()`.
 
-Entering zeroes the motor voltage and the encoders, sets the watchdog to zero the
-voltage and disable the amplifier on expiry, enables the amplifier, starts a
-reader task at `frequency` and starts the watchdog. `action(voltages, led=None)`
+Entering clears a watchdog left expired by an earlier run, writes 0 V with the
+amplifier off, starts a reader task at `frequency`, zeroes the encoders if the
+Qube is at rest (no count changes for 0.2 s; a pendulum still swinging from an
+earlier run keeps the counts the board went on counting since they were last
+zeroed, which stay valid while the board is powered), sets the watchdog to zero
+the voltage and disable the amplifier on expiry, enables the amplifier and starts
+the watchdog. `action(voltages, led=None)`
 waits for the next sample, reloads the watchdog, checks safety, writes the
 voltages and returns (currents in A, encoder counts, other inputs) as the board
 reports them: raw board units and signs (`conventions.py` maps them to the
@@ -42,6 +46,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
+import weakref
 from collections.abc import Sequence
 from typing import Any, NoReturn
 
@@ -51,12 +57,13 @@ from qube_suite.hardware import conventions
 from qube_suite.hardware.errors import (
     AmplifierFaultError,
     ArmLimitError,
+    BoardIOError,
     BoardOpenError,
     EncoderGlitchError,
+    HardwareError,
     MissedSamplesError,
     MotorStallError,
     QuanserSDKNotFoundError,
-    SafetyStopError,
     WatchdogExpiredError,
 )
 from qube_suite.hardware.plant import plant_parameters
@@ -90,6 +97,7 @@ class Device:
     stall_warning_inputs: tuple[int, ...]       # digital inputs: 1 = stall detected
     stall_error_inputs: tuple[int, ...]         # digital inputs: 1 = stall error (amplifier disabled)
     arm_encoder: int | None = 0                 # encoder channel watched by `arm_limit`
+    card_options: str = ""                      # set by set_card_specific_options at open ("" = none)
 
     @property
     def digital_inputs(self) -> tuple[int, ...]:
@@ -104,28 +112,111 @@ QUBE_SERVO_2 = Device(
     amplifier_fault_inputs=(0,), stall_warning_inputs=(1,), stall_error_inputs=(2,), arm_encoder=0)
 """Quanser Qube-Servo 2 (QUARC card qube_servo2_usb)."""
 
-QUBE_SERVO_3 = dataclasses.replace(QUBE_SERVO_2, board_type="qube_servo3_usb")
-"""Quanser Qube-Servo 3 (QUARC card qube_servo3_usb): the same channels for what is used here."""
+QUBE_SERVO_3 = dataclasses.replace(
+    QUBE_SERVO_2, board_type="qube_servo3_usb", other_inputs=(14000, 14001),
+    card_options=("deadband_compensation=0.3;pwm_en=0;enc0_velocity=3.0;enc1_velocity=3.0;"
+                  "min_diode_compensation=0.3;max_diode_compensation=1.5"))
+"""Quanser Qube-Servo 3 (QUARC card qube_servo3_usb): the Qube-Servo 2's channels plus the pendulum
+tachometer (other input 14001, counts/s), and the card options Quanser's own Python library sets on
+it (`QubeServo3(boardSpecificOptions=...)` default in Quanser_Academic_Resources,
+0_libraries/python/pal/products/qube.py; QUARC's generated Qube-Servo 3 models set the same
+`deadband_compensation`, `pwm_en=0` and `enc*_velocity` options)."""
+
+DEVICES = {"qube_servo2": QUBE_SERVO_2, "qube_servo3": QUBE_SERVO_3}
+"""Qubes by name, as `device=` takes them."""
+
+MAX_FREQUENCY = 10000.0
+"""Highest sample rate (Hz) the wrapper accepts: the substitute's plant integrates at 10 kHz."""
+
+REST_CHECK_TIME = 0.2
+"""At open(), the encoders are zeroed only if no count changed over this long (s): a pendulum still
+swinging from an earlier run keeps the counts the board went on counting since they were zeroed."""
+
+AMPLIFIER_RANGE = 15.0
+"""Largest `max_voltage` (V): the Qube's amplifier range, +-15 V (see `plant.py`)."""
 
 LED_OFF_STATE = (1.0, 0.0, 0.0)
 """The LED's colour after `close()`: red."""
 
 
-def _hil_api(simulated: bool) -> tuple[Any, Any, Any]:
-    """(HIL class, Clock, BufferOverflowMode) of the substitute or of Quanser's SDK."""
+def _hil_api(simulated: bool) -> tuple[Any, Any, Any, type[Exception]]:
+    """(HIL class, Clock, BufferOverflowMode, HILError) of the substitute or of Quanser's SDK."""
     if simulated:
         try:
             from qube_suite.hardware import _hil_sim
         except ImportError as error:
             raise ImportError("the substitute board is a compiled extension that is missing; reinstall "
                               "qube_suite from source (pip install -e .) to build it") from error
-        return _hil_sim.HIL, _hil_sim.Clock, _hil_sim.BufferOverflowMode
+        return _hil_sim.HIL, _hil_sim.Clock, _hil_sim.BufferOverflowMode, _hil_sim.HILError
     try:
-        from quanser.hardware import HIL, Clock
+        from quanser.hardware import HIL, Clock, HILError
         from quanser.hardware.enumerations import BufferOverflowMode
     except ImportError as error:
         raise QuanserSDKNotFoundError(SDK_HELP) from error
-    return HIL, Clock, BufferOverflowMode
+    except OSError as error:  # the Python package is there, its native HIL library is not
+        raise QuanserSDKNotFoundError(f"Quanser's native HIL library could not be loaded ({error}). "
+                                      + SDK_HELP) from error
+    return HIL, Clock, BufferOverflowMode, HILError
+
+
+def error_text(error: BaseException) -> str:
+    """A board error's text: Quanser's `get_error_message()` and the code where there is one."""
+    message = getattr(error, "get_error_message", None)
+    code = getattr(error, "error_code", None)
+    if callable(message):
+        try:
+            text = message()
+        except Exception:  # a message lookup that fails must not hide the error itself
+            text = ""
+        if text:
+            return text if code is None else f"{text} (error {code})"
+    return str(error)
+
+
+def _real_number(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a number, got {value!r}")
+    return float(value)
+
+
+class _Handle:
+    """What a finaliser needs to leave the board safe when its wrapper is collected or the
+    interpreter exits: the board, the task and the channels, never the wrapper itself."""
+
+    def __init__(self, channels: dict[str, np.ndarray]):
+        self.board: Any = None
+        self.task: Any = None
+        self.open = False
+        self.channels = channels
+
+    def shut(self) -> list[BaseException]:
+        """0 V, LED red, amplifier off, watchdog stopped (after the outputs), task deleted,
+        board closed: every step tried; the failures returned."""
+        if not self.open:
+            return []
+        board, task, c = self.board, self.task, self.channels
+        errors: list[BaseException] = []
+
+        def attempt(function, *args):
+            try:
+                return function(*args)
+            except BaseException as error:  # a second Ctrl-C must not skip the remaining steps
+                errors.append(error)
+                return None
+
+        if not attempt(board.watchdog_is_expired):  # an expired watchdog has already zeroed the outputs
+            attempt(board.write_analog, c["analog_outputs"], len(c["analog_outputs"]),
+                    np.zeros(len(c["analog_outputs"])))
+            attempt(board.write_digital, c["digital_outputs"], len(c["digital_outputs"]),
+                    np.zeros(len(c["digital_outputs"]), dtype=np.int8))
+            attempt(board.write_other, c["led_outputs"], len(c["led_outputs"]), np.array(LED_OFF_STATE))
+        attempt(board.watchdog_stop)  # only after the outputs are zeroed
+        if task is not None:
+            attempt(board.task_stop, task)
+            attempt(board.task_delete, task)
+        attempt(board.close)
+        self.task, self.open = None, False
+        return errors
 
 
 class QuanserWrapper:
@@ -154,17 +245,39 @@ class QuanserWrapper:
         simulated = board == SIMULATED
         if not simulated and plant is not None:
             raise ValueError("plant= sets the substitute board's plant; a real board has its own physics")
+        if realtime is not None and not isinstance(realtime, bool):
+            raise TypeError(f"realtime must be True, False or None, got {realtime!r}")
         if not simulated and realtime is False:
             raise ValueError("a real board always runs in real time")
+        if not isinstance(identifier, str):
+            raise TypeError(f"identifier must be a string such as '0', got {identifier!r}")
+        frequency = _real_number("frequency", frequency)
+        max_voltage = _real_number("max_voltage", max_voltage)
+        watchdog_timeout = _real_number("watchdog_timeout", watchdog_timeout)
         for name, value in (("frequency", frequency), ("max_voltage", max_voltage),
                             ("watchdog_timeout", watchdog_timeout)):
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be positive, got {value}")
-        if arm_limit is not None and not (math.isfinite(arm_limit) and arm_limit > 0):
+        if max_voltage > AMPLIFIER_RANGE:
+            raise ValueError(f"max_voltage must be at most the amplifier's {AMPLIFIER_RANGE:g} V, "
+                             f"got {max_voltage}")
+        if frequency > MAX_FREQUENCY:
+            raise ValueError(f"frequency must be at most {MAX_FREQUENCY:g} Hz, got {frequency}")
+        if 2.0 / frequency > watchdog_timeout:
+            raise ValueError(
+                f"frequency {frequency:g} Hz cannot keep the {watchdog_timeout:g} s watchdog fed (one action "
+                f"per sample, at least two per timeout): use at least {2.0 / watchdog_timeout:g} Hz")
+        if arm_limit is not None and not (math.isfinite(_real_number("arm_limit", arm_limit))
+                                          and arm_limit > 0):
             raise ValueError(f"arm_limit must be positive or None, got {arm_limit}")
+        if max_missed_samples is not None and (isinstance(max_missed_samples, bool)
+                                               or not isinstance(max_missed_samples, numbers.Integral)):
+            raise TypeError(f"max_missed_samples must be an int or None, got {max_missed_samples!r}")
         if max_missed_samples is not None and max_missed_samples < 0:
             raise ValueError(f"max_missed_samples must be >= 0 or None, got {max_missed_samples}")
-        if max_encoder_speed is not None and not (math.isfinite(max_encoder_speed) and max_encoder_speed > 0):
+        if max_encoder_speed is not None and not (math.isfinite(_real_number("max_encoder_speed",
+                                                                             max_encoder_speed))
+                                                  and max_encoder_speed > 0):
             raise ValueError(f"max_encoder_speed must be positive or None, got {max_encoder_speed}")
         if simulated:
             plant_parameters(device.board_type, plant)  # a misspelt name fails now, not at open()
@@ -181,9 +294,8 @@ class QuanserWrapper:
         self.max_encoder_speed = max_encoder_speed
         self.missed_samples = 0
         self.stall_warning = False
-        self._board: Any = None
-        self._task: Any = None
-        self._open = False
+        self.encoders_zeroed = False
+        """True if the last open() zeroed the encoders (the Qube was at rest)."""
         self._idle = False
 
         d = device
@@ -202,6 +314,19 @@ class QuanserWrapper:
         self._arm_at = None if d.arm_encoder is None else d.encoder_inputs.index(d.arm_encoder)
         self._overflows_seen: int | None = None
         self._last_counts: list[int] | None = None  # encoder counts of the last sample, for the glitch check
+        self._board_error: type[Exception] = Exception  # the board's HILError class, set at open()
+        self._handle = _Handle(self._channels)
+        # Garbage collection and interpreter exit leave the board safe too (the handle, not `self`).
+        self._finalizer = weakref.finalize(self, self._handle.shut)
+
+    # The board's state lives in the handle that the finaliser shares.
+    _board = property(lambda self: self._handle.board)
+    _task = property(lambda self: self._handle.task)
+    _open = property(lambda self: self._handle.open)
+
+    def __getstate__(self) -> NoReturn:
+        raise TypeError(f"a {type(self).__name__} drives a board, which cannot be copied or pickled: make a "
+                        "new one (or a new environment) in the other process")
 
     # -- opening and closing ---------------------------------------------------------------
 
@@ -227,22 +352,39 @@ class QuanserWrapper:
         if self._open:
             raise RuntimeError("the board is already open")
         simulated = self.board_name == SIMULATED
-        hil_class, clock, overflow_mode = _hil_api(simulated)
+        hil_class, clock, overflow_mode, self._board_error = _hil_api(simulated)
         board = hil_class(plant=self.plant, realtime=self.realtime) if simulated else hil_class()
         try:
             board.open(self.device.board_type, self.identifier)
         except Exception as error:
             raise BoardOpenError(
-                f"could not open the {self.device.board_type} board {self.identifier!r}: {error}; check that "
-                "it is connected and powered and that no other program has it open") from error
-        self._board, self._task, self._open, self._idle = board, None, True, False
+                f"could not open the {self.device.board_type} board {self.identifier!r}: "
+                f"{error_text(error)}; check that it is connected and powered and that no other program has "
+                "it open") from error
+        handle = self._handle
+        handle.board, handle.task, handle.open, self._idle = board, None, True, False
         self.missed_samples, self.stall_warning, self._overflows_seen = 0, False, None
         self._last_counts = None
         c = self._channels
         try:
+            if board.watchdog_is_expired():  # left expired by an earlier run that died: unlock the outputs
+                board.watchdog_clear()
+            if self.device.card_options:
+                board.set_card_specific_options(self.device.card_options, len(self.device.card_options) + 1)
             board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
-            board.set_encoder_counts(c["encoder_inputs"], len(c["encoder_inputs"]),
-                                     np.zeros(len(c["encoder_inputs"]), dtype=np.int32))
+            board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
+                                np.zeros(len(c["digital_outputs"]), dtype=np.int8))
+            handle.task = board.task_create_reader(
+                1, c["analog_inputs"], len(c["analog_inputs"]), c["encoder_inputs"], len(c["encoder_inputs"]),
+                c["digital_inputs"], len(c["digital_inputs"]), c["other_inputs"], len(c["other_inputs"]))
+            board.task_set_buffer_overflow_mode(self._task, overflow_mode.OVERWRITE_ON_OVERFLOW)
+            # Quanser's older Python API has no HIL.INFINITE; -1 is its value in the C API.
+            board.task_start(self._task, clock.HARDWARE_CLOCK_0, self.frequency,
+                             getattr(hil_class, "INFINITE", -1))
+            self.encoders_zeroed = self._at_rest(board)
+            if self.encoders_zeroed:
+                board.set_encoder_counts(c["encoder_inputs"], len(c["encoder_inputs"]),
+                                         np.zeros(len(c["encoder_inputs"]), dtype=np.int32))
             board.watchdog_set_analog_expiration_state(c["analog_outputs"], len(c["analog_outputs"]),
                                                        self._zero_volts)
             board.watchdog_set_digital_expiration_state(  # 0 = DigitalState.LOW: amplifiers disabled
@@ -250,41 +392,29 @@ class QuanserWrapper:
                 np.zeros(len(c["digital_outputs"]), dtype=np.int32))
             board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
                                 np.ones(len(c["digital_outputs"]), dtype=np.int8))
-            self._task = board.task_create_reader(
-                1, c["analog_inputs"], len(c["analog_inputs"]), c["encoder_inputs"], len(c["encoder_inputs"]),
-                c["digital_inputs"], len(c["digital_inputs"]), c["other_inputs"], len(c["other_inputs"]))
-            board.task_set_buffer_overflow_mode(self._task, overflow_mode.OVERWRITE_ON_OVERFLOW)
-            board.task_start(self._task, clock.HARDWARE_CLOCK_0, self.frequency, hil_class.INFINITE)
+            self._overflows_seen = None
             board.watchdog_start(self.watchdog_timeout)
-        except BaseException:
+        except BaseException as error:
             self.close()
+            if isinstance(error, self._board_error):
+                raise BoardIOError(
+                    f"could not set up the {self.device.board_type} board: {error_text(error)}") from error
             raise
+
+    def _at_rest(self, board: Any) -> bool:
+        """True if no encoder count changed over `REST_CHECK_TIME` of samples (amplifier off)."""
+        first = None
+        for _ in range(max(2, round(REST_CHECK_TIME * self.frequency))):
+            board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
+            if first is None:
+                first = self._encoders.copy()
+            elif not np.array_equal(first, self._encoders):
+                return False
+        return True
 
     def close(self) -> None:
         """Stop the motor and close the board: every step is tried; the first failure is raised after."""
-        if not self._open:
-            return
-        board, task, c = self._board, self._task, self._channels
-        errors: list[BaseException] = []
-
-        def attempt(function, *args):
-            try:
-                return function(*args)
-            except BaseException as error:  # a second Ctrl-C must not skip the remaining steps
-                errors.append(error)
-                return None
-
-        if not attempt(board.watchdog_is_expired):  # an expired watchdog has already zeroed the outputs
-            attempt(board.write_analog, c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
-            attempt(board.write_other, c["led_outputs"], len(c["led_outputs"]), np.array(LED_OFF_STATE))
-            attempt(board.write_digital, c["digital_outputs"], len(c["digital_outputs"]),
-                    np.zeros(len(c["digital_outputs"]), dtype=np.int8))
-        attempt(board.watchdog_stop)
-        if task is not None:
-            attempt(board.task_stop, task)
-            attempt(board.task_delete, task)
-        attempt(board.close)
-        self._task, self._open = None, False
+        errors = self._handle.shut()
         if errors:
             raise errors[0]
 
@@ -303,7 +433,10 @@ class QuanserWrapper:
             raise RuntimeError("the board is idle: call resume() before action()")
         volts = self._checked_voltages(voltages)
         rgb = None if led is None else self._checked_led(led)
-        board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
+        try:
+            board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
+        except self._board_error as error:
+            self._stop(BoardIOError(f"the board could not deliver a sample: {error_text(error)}"), error)
         if not board.watchdog_reload():
             self._stop(WatchdogExpiredError(
                 f"the watchdog expired: no action for {self.watchdog_timeout} s, so the board zeroed its "
@@ -325,13 +458,16 @@ class QuanserWrapper:
         """
         board = self._require_open()
         c = self._channels
-        if board.watchdog_is_expired():
-            board.watchdog_clear()
-        board.watchdog_stop()
-        board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
-        board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
-                            np.zeros(len(c["digital_outputs"]), dtype=np.int8))
         self._idle = True
+        try:
+            if not board.watchdog_is_expired():  # expired: the outputs are at 0 V, amplifier off
+                board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
+                board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
+                                    np.zeros(len(c["digital_outputs"]), dtype=np.int8))
+        except self._board_error as error:
+            if not board.watchdog_is_expired():  # it expired between the check and the writes: safe
+                raise BoardIOError(f"could not stop the motor: {error_text(error)}") from error
+        board.watchdog_stop()  # only now: until here the watchdog still guards the outputs
 
     def resume(self) -> None:
         """Drive again after `idle()`: enable the amplifier and restart the watchdog; samples
@@ -341,9 +477,15 @@ class QuanserWrapper:
             return
         c = self._channels
         self._overflows_seen = None
-        board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
-                            np.ones(len(c["digital_outputs"]), dtype=np.int8))
-        board.watchdog_start(self.watchdog_timeout)
+        try:
+            if board.watchdog_is_expired():
+                board.watchdog_clear()
+            board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
+            board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
+                                np.ones(len(c["digital_outputs"]), dtype=np.int8))
+            board.watchdog_start(self.watchdog_timeout)
+        except self._board_error as error:
+            raise BoardIOError(f"could not resume driving: {error_text(error)}") from error
         self._idle = False
         self._last_counts = None  # the Qube may have moved while idle
 
@@ -376,13 +518,13 @@ class QuanserWrapper:
         if not board.watchdog_is_expired():
             board.write_analog(self._channels["analog_outputs"], len(self._zero_volts), self._zero_volts)
 
-    def _stop(self, error: SafetyStopError) -> NoReturn:
+    def _stop(self, error: HardwareError, cause: BaseException | None = None) -> NoReturn:
         """Stop driving (0 V, amplifier disabled, watchdog stopped: idle) and raise `error`."""
         try:
             self.idle()
         except BaseException as failure:
             raise error from failure
-        raise error
+        raise error from cause
 
     def _refuse(self, message: str) -> NoReturn:
         self._zero_voltage()

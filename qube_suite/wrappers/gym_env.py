@@ -141,12 +141,16 @@ class QubeEnv(gymnasium.Env):
         reward, discount = environment.advance(action)
         terminated = discount == 0.0
         truncated = discount == 1.0
-        if self.render_mode == "human":
-            self.render()
-        info = self._info()
-        if terminated and environment.physics_error is not None:
-            info["physics_error"] = environment.physics_error
-        return self._observation(), reward, terminated, truncated, info
+        try:
+            if self.render_mode == "human":
+                self.render()
+            info = self._info()
+            if terminated and environment.physics_error is not None:
+                info["physics_error"] = environment.physics_error
+            return self._observation(), reward, terminated, truncated, info
+        except BaseException:
+            environment.stop_episode()  # on hardware: no voltage left on after a failure here
+            raise
 
     def render(self):
         if self.environment.closed:
