@@ -17,8 +17,6 @@ from dm_control.suite.wrappers import action_scale, pixels
 from qube_suite import suite
 from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
 
-HARDWARE_HAS_NO_MODEL = pytest.mark.xfail(
-    strict=True, reason="qube_hardware's physics has no `model` (the digital twin's model belongs there)")
 SUBSTITUTE_RESETS_REPEAT = pytest.mark.xfail(
     strict=True, reason="the substitute starts these tasks from exactly the same state at consecutive resets")
 
@@ -61,11 +59,7 @@ def test_constants():
     assert set(suite.BENCHMARKING) | set(suite.SPARSE) == set(suite.ALL_TASKS)
 
 
-def hardware_model(domain, task):
-    return (HARDWARE_HAS_NO_MODEL,) if domain == "qube_hardware" else ()
-
-
-@pytest.mark.parametrize("domain, task", all_tasks(hardware_model))
+@pytest.mark.parametrize("domain, task", all_tasks())
 def test_components_have_names(domain, task):
     model = suite.load(domain, task).physics.model
     kinds = [("body", "nbody"), ("joint", "njnt"), ("geom", "ngeom"), ("site", "nsite"), ("camera", "ncam"),
@@ -77,7 +71,7 @@ def test_components_have_names(domain, task):
             assert model.id2name(index, object_type) != "", f"unnamed {object_type} {index}"
 
 
-@pytest.mark.parametrize("domain, task", all_tasks(hardware_model))
+@pytest.mark.parametrize("domain, task", all_tasks())
 def test_model_has_at_least_2_cameras(domain, task):
     assert suite.load(domain, task).physics.model.ncam >= 2
 

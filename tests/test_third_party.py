@@ -111,7 +111,6 @@ def test_pickle_env(env_id):
     pickled.close()
 
 
-@pytest.mark.xfail(strict=True, reason="hardware environments are not yet refused clearly when pickled")
 def test_pickling_a_hardware_env_is_refused_clearly():
     env = gymnasium.make("QubeSuite/BalanceHardware-v0")
     env.reset(seed=0)
@@ -131,11 +130,7 @@ def test_stable_baselines3_check_env(env_id):
     env.close()
 
 
-@pytest.mark.parametrize("domain", [
-    "qube",
-    pytest.param("qube_hardware", marks=pytest.mark.xfail(
-        strict=True, reason="shimmy's close() calls physics.free(), which qube_hardware's physics lacks")),
-])
+@pytest.mark.parametrize("domain", ["qube", "qube_hardware"])
 def test_shimmy_round_trip_including_close(domain):
     import shimmy  # noqa: F401  (registers dm_control/compatibility-env-v0)
 
