@@ -4,7 +4,7 @@
     result = evaluate("balance", domain="qube", task="balance", episodes=20, seed=0)
     result.mean_return, result.success_rate
 
-Success, per task (documented in the README):
+Success, per task (documented in docs/controllers.md):
   * swing-up and balance tasks: not terminated, and the pendulum within 10 degrees
     of upright throughout the final 2 s;
   * dampen tasks: not terminated, and the pendulum within 10 degrees of hanging

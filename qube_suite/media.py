@@ -26,7 +26,7 @@ from qube_suite import extras
 from qube_suite.episodes import EpisodeTrace, Policy, run_episode
 
 DEFAULT_CAMERA = "front_oblique"
-"""The camera of the README's pictures; the model also has "front" and "top"."""
+"""The camera of the documentation's pictures; the model also has "front" and "top"."""
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 640, 480
 """Frame size (pixels)."""

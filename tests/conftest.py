@@ -1,4 +1,11 @@
-"""Test setup: offscreen rendering chosen before MuJoCo or dm_control are imported."""
+"""Test setup: offscreen rendering chosen before MuJoCo or dm_control are imported, and the test tiers.
+
+Tiers (markers, declared in pyproject.toml): `slow` tests (seconds each: training, long
+episodes, real-time runs) are left out of a plain `pytest` and run with `pytest -m slow`;
+`hardware` marks the tests of the hardware path (every module `test_hardware_*.py` and
+`test_baselines_hardware.py`), `render` the tests that draw frames (skipped without OSMesa).
+`pytest -m "not hardware and not render"` runs the simulation alone.
+"""
 
 import ctypes.util
 import os
@@ -10,8 +17,19 @@ if OFFSCREEN_GL:
     os.environ["MUJOCO_GL"] = "osmesa"
     os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 
-requires_offscreen_gl = pytest.mark.skipif(
-    not OFFSCREEN_GL, reason="offscreen rendering needs OSMesa (apt-get install libosmesa6)")
+requires_offscreen_gl = pytest.mark.render
+"""Mark of a test that renders frames: skipped where no offscreen OpenGL library is found."""
+
+HARDWARE_MODULES = ("test_hardware_", "test_baselines_hardware")
+
+
+def pytest_collection_modifyitems(config, items):
+    skip_render = pytest.mark.skip(reason="offscreen rendering needs OSMesa (apt-get install libosmesa6)")
+    for item in items:
+        if item.module.__name__.startswith(HARDWARE_MODULES):
+            item.add_marker(pytest.mark.hardware)
+        if item.get_closest_marker("render") is not None and not OFFSCREEN_GL:
+            item.add_marker(skip_render)
 
 
 @pytest.fixture

@@ -34,6 +34,7 @@ def test_other_device_drives_the_substitute_board(capsys):
     assert turned < -5 and "tachometer: -" in out  # negative volts turn clockwise
 
 
+@pytest.mark.slow
 def test_sb3_example_trains_or_says_how_to_install(capsys, tmp_path):
     example = load("train_sb3")
     if importlib.util.find_spec("stable_baselines3") is None:

@@ -6,7 +6,7 @@
     shipped()                                        # {"ppo:balance": path, ...}
 
 Shipped policies are `<algo>_<task>.npz` files beside this module, trained with
-`qube-suite train` (see the README's "Reinforcement learning" section); the file
+`qube-suite train` (see docs/reinforcement-learning.md); the file
 format is described in `qube_suite.policies.mlp`.
 """
 

@@ -23,7 +23,7 @@ from qube_suite.tasks.elementwise import cos, sin
 
 DEFAULT_VOLTAGE_LIMIT = 3.0
 """Default motor voltage limit (V): the smallest in [3, 10] V that allows a swing-up
-within the arm's +-90 degrees (3 V does; `benchmarks/voltage_limit.py`, README "The model")."""
+within the arm's +-90 degrees (3 V does; `benchmarks/voltage_limit.py`, docs/model.md)."""
 
 MAX_VOLTAGE_LIMIT = 10.0
 """Largest voltage limit a task accepts (V), the range of the model's motor."""

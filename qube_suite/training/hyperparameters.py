@@ -4,8 +4,8 @@ Starting points are rl-zoo3's tuned settings (DLR-RM/rl-baselines3-zoo,
 `hyperparams/ppo.yml` and `hyperparams/sac.yml`) for the nearest tasks, the
 pybullet pendulums (`InvertedPendulumSwingupBulletEnv-v0` and the
 `HalfCheetahBulletEnv-v0` defaults it shares in sac.yml) and `Pendulum-v1`.
-What we changed, and why, is commented beside each value; the README's
-"Reinforcement learning" section has the same table.
+What we changed, and why, is commented beside each value; docs/reinforcement-learning.md
+tells how the shipped policies were trained.
 """
 
 from __future__ import annotations

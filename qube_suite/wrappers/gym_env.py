@@ -55,7 +55,7 @@ class QubeEnv(gymnasium.Env):
 
     ## Reward and start
     The task's: see its class docstring (e.g. `help(qube_suite.tasks.Swingup)`) and
-    the README's task table. Rewards are per step, at most 1.
+    the task table in docs/tasks.md. Rewards are per step, at most 1.
 
     ## Episode end
     `terminated` when the task's safe set is left (arm beyond +-90 degrees, and in

@@ -40,7 +40,7 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
 
     ## Reward, start and episode end
     Each world's are the task's, as in the single environment (the task classes'
-    docstrings, e.g. `help(qube_suite.tasks.Swingup)`, and the README's table).
+    docstrings, e.g. `help(qube_suite.tasks.Swingup)`, and the table in docs/tasks.md).
 
     ## Seeding
     `reset(seed=s)` seeds world i with s + i (like `SyncVectorEnv`); `seed=[s_0,

@@ -1,6 +1,9 @@
-"""The README's examples run, its set-up commands exist, its parameter table is the package's, and
-its results table covers every controller, task and domain."""
+"""The README's and the documentation's examples run and print what the pages say they print;
+the set-up commands exist; the parameter, preset and results tables are the package's."""
 
+import contextlib
+import doctest
+import io
 import pathlib
 import re
 
@@ -9,8 +12,18 @@ from conftest import OFFSCREEN_GL
 
 from qube_suite import baselines, parameters, randomization, suite
 
-README = (pathlib.Path(__file__).resolve().parent.parent / "README.md").read_text()
-PYTHON_BLOCKS = re.findall(r"```python\n(.*?)```", README, re.S)
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+README = (ROOT / "README.md").read_text()
+PAGES = {path.relative_to(ROOT).as_posix(): path.read_text()
+         for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]}
+EXAMPLE = re.compile(r"```python\n(.*?)```(?:\n+```text\n(.*?)```)?", re.S)
+"""A Python block, and the block of what it prints if one follows it (```text)."""
+EXAMPLES = [(page, index, code, output) for page, text in PAGES.items()
+            for index, (code, output) in enumerate(EXAMPLE.findall(text))]
+
+
+def page_text(name):
+    return PAGES[f"docs/{name}.md"]
 
 
 def setup_command(marker):
@@ -25,17 +38,29 @@ def test_two_setup_commands():
     assert len(re.findall(r"<!-- \w+-command -->", README)) == 2
 
 
-@pytest.mark.parametrize("index", range(len(PYTHON_BLOCKS)))
-def test_python_example_runs(index, monkeypatch, tmp_path):
+def test_every_page_has_examples_with_checked_output():
+    checked = [page for page, _, _, output in EXAMPLES if output]
+    assert "README.md" in checked and len(set(checked)) >= 5
+
+
+@pytest.mark.parametrize(("page", "index", "code", "output"), EXAMPLES,
+                         ids=[f"{page}:{index}" for page, index, _, _ in EXAMPLES])
+def test_example_runs_and_prints_what_the_page_says(page, index, code, output, monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)  # files the examples write land here
-    code = PYTHON_BLOCKS[index]
     if "render" in code and not OFFSCREEN_GL:
         pytest.skip("offscreen rendering needs OSMesa (apt-get install libosmesa6)")
-    exec(compile(code, f"README.md python block {index}", "exec"), {})
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        exec(compile(code, f"{page} python block {index}", "exec"), {})
+    if output:
+        checker = doctest.OutputChecker()
+        flags = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
+        assert checker.check_output(output, printed.getvalue(), flags), (
+            f"{page} python block {index} printed:\n{printed.getvalue()}\nthe page says:\n{output}")
 
 
 def test_parameter_table_matches_the_package():
-    rows = re.findall(r"^\| `(\w+)`(?:, `(\w+)`)? \| [^|]+ \| ([^|]+) \|$", README, re.M)
+    rows = re.findall(r"^\| `(\w+)`(?:, `(\w+)`)? \| [^|]+ \| ([^|]+) \|$", page_text("model"), re.M)
     documented = {}
     for first, second, values in rows:
         numbers = [float(n) for n in re.findall(r"[0-9.]+(?:e-?[0-9]+)?", values)]
@@ -47,7 +72,7 @@ def test_parameter_table_matches_the_package():
 
 
 def preset_cell(name, value):
-    """A parameter's distribution or an effect's settings as the README's preset table shows them."""
+    """A parameter's distribution or an effect's settings as the preset table shows them."""
     if name in parameters.PARAMETERS:
         return str(value) if value.relative else f"{value} {parameters.PARAMETERS[name].unit}"
     fields = randomization.EFFECTS[name].fields
@@ -67,12 +92,12 @@ def test_preset_table_matches_the_presets():
         if any(entry is not None for entry in entries):
             cells = ["–" if entry is None else preset_cell(name, entry) for entry in entries]
             rows.append(f"| `{name}` | " + " | ".join(cells) + " |")
-    assert "\n".join(rows) in README
+    assert "\n".join(rows) in page_text("randomization")
 
 
 def test_results_table_covers_every_controller_task_and_domain():
-    block = re.search(r"<!-- results:begin -->\n(.*?)<!-- results:end -->", README, re.S)
-    assert block, "README lacks the results markers"
+    block = re.search(r"<!-- results:begin -->\n(.*?)<!-- results:end -->", page_text("controllers"), re.S)
+    assert block, "docs/controllers.md lacks the results markers"
     header = re.search(r"^\| controller \| task \|.*$", block.group(1), re.M).group(0)
     assert all(f"`{domain}`" in header for domain in suite.TASKS_BY_DOMAIN)
     rows = re.findall(r"^\| `(\w+)` \| (\w+) \|", block.group(1), re.M)
