@@ -108,6 +108,7 @@ def test_balance_controller_with_latency_answers_like_the_delay_augmented_lqr():
     assert u1 == pytest.approx(-(augmented @ np.append(x1, u0)).item(), rel=1e-3)
 
 
+@pytest.mark.slow
 def test_latency_prediction_balances_through_a_delay_the_plain_lqr_cannot():
     """48 ms of action delay: the LQR told the latency balances every episode, without it none."""
     delay = 12
@@ -206,6 +207,7 @@ def test_follow_on_hardware_settles_at_a_steady_target(target):
     assert np.abs(true_states[-250:, 0] - target).max() < 0.08   # within 4.6 degrees over the last second
 
 
+@pytest.mark.slow
 def test_follow_on_hardware_swings_up_and_follows_the_moving_target():
     result = evaluate("follow", domain="qube_hardware", task="swingup_follow", episodes=2)
     assert result.success_rate == 1.0 and min(result.returns) > 1600

@@ -34,6 +34,7 @@ def recorded(tmp_path_factory):
     return path, calibration.calibrate("qube_hardware", seconds=60, recording=path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("plant", HIDDEN_PLANTS)
 def test_recovers_hidden_plants(plant, tmp_path):
     result = calibration.calibrate("qube_hardware", {"plant": plant}, recording=tmp_path / "experiment.jsonl")
@@ -53,6 +54,7 @@ def test_recovers_hidden_plants(plant, tmp_path):
     assert result.prediction["nominal_rms"] > 10 * result.prediction["calibrated_rms"]
 
 
+@pytest.mark.slow
 def test_experiment_stays_safe_and_records_currents(recorded):
     path, _ = recorded
     m = measurements.load(path)
@@ -65,6 +67,7 @@ def test_experiment_stays_safe_and_records_currents(recorded):
     assert m.metadata["board_type"] == "qube_servo2_usb" and m.metadata["identifier"] == "0"
 
 
+@pytest.mark.slow
 def test_curvature_only_intervals_are_narrower_than_the_calibrated_ones(recorded):
     from qube_suite.calibration import fit, intervals
 
@@ -169,6 +172,7 @@ def test_bad_recordings_are_refused_and_nothing_is_written(recorded, tmp_path, m
     assert not out.exists() and not (tmp_path / "my_qube.randomization.yaml").exists()
 
 
+@pytest.mark.slow
 def test_short_recordings_and_recordings_without_currents_are_refused(tmp_path):
     short = experiment.run(tmp_path / "short.jsonl", "qube_hardware", seconds=10.0)
     with pytest.raises(ValueError, match="too short"):
@@ -188,6 +192,7 @@ def test_an_experiment_that_does_not_finish_leaves_no_recording(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_recording_without_current_column_is_refused(recorded, tmp_path):
     source = recorded[0]
     with open(source) as file:
@@ -208,6 +213,7 @@ def test_recording_without_current_column_is_refused(recorded, tmp_path):
         calibration.calibrate_recording(target)
 
 
+@pytest.mark.slow
 def test_cli_calibrates_a_recording_and_writes_file_and_report(recorded, tmp_path, capsys):
     pytest.importorskip("matplotlib")
     out = tmp_path / "my_qube.yaml"

@@ -31,6 +31,7 @@ def test_run_and_eval_take_learned_policies(capsys, tmp_path):
     assert "episode 1 (seed 0): return 204" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_demo_swings_up_prints_the_return_and_plots_it(capsys, monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)
     assert cli.main(["demo", "--seed", "2"]) == 0
@@ -53,6 +54,7 @@ def test_demo_without_matplotlib_says_how_to_get_the_plot(capsys, monkeypatch, t
     assert not (tmp_path / cli.DEMO_PLOT).exists()
 
 
+@pytest.mark.slow
 @requires_offscreen_gl
 def test_run_prints_returns_and_writes_video_and_plot(capsys, tmp_path):
     video, plot = tmp_path / "balance.mp4", tmp_path / "balance.png"
@@ -118,6 +120,7 @@ def test_every_subcommand_has_help_with_an_example(capsys):
         assert f"qube-suite {command}" in capsys.readouterr().out.split("example")[1]
 
 
+@pytest.mark.slow
 def test_user_mistakes_are_one_line_errors_with_nonzero_exit():
     result = subprocess.run([sys.executable, "-m", "qube_suite", "demo", "--seed", "x"],
                             capture_output=True, text=True)
@@ -127,6 +130,7 @@ def test_user_mistakes_are_one_line_errors_with_nonzero_exit():
     assert result.returncode == 2 and "invalid choice" in result.stderr
 
 
+@pytest.mark.slow
 def test_bench_quick_prints_one_table_with_ratios(capsys):
     assert cli.main(["bench", "--quick"]) == 0
     out = capsys.readouterr().out

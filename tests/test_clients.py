@@ -25,6 +25,7 @@ def vector_rollout(mode: str, env_id: str, **kwargs) -> np.ndarray:
     return np.concatenate(values, axis=1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("randomization", [None, "sim2real"])
 def test_make_vec_modes_give_identical_observations(randomization):
     rollouts = {mode: vector_rollout(mode, "QubeSuite/SwingupFollow-v0", randomization=randomization)
@@ -47,6 +48,7 @@ def test_an_unknown_keyword_is_a_type_error_that_lists_the_valid_ones(make):
     assert isinstance(error.value, ValueError)  # and still a ValueError, as every other bad argument
 
 
+@pytest.mark.slow
 def test_torchrl_gym_env_and_its_spec_check():
     pytest.importorskip("torchrl")
     from torchrl.envs import GymEnv

@@ -5,6 +5,7 @@ import unittest
 
 import gymnasium
 import numpy as np
+import pytest
 from conftest import requires_offscreen_gl
 from dm_env import test_utils
 
@@ -38,6 +39,7 @@ def test_every_task_has_a_gymnasium_id():
     assert GYMNASIUM_IDS["QubeSuite/BalanceFollowSparse-v0"] == "balance_follow_sparse"
 
 
+@pytest.mark.slow
 @requires_offscreen_gl
 def test_rendered_frame_shows_the_qube_and_its_led():
     env = gymnasium.make("QubeSuite/Swingup-v0", render_mode="rgb_array", width=320, height=240)
@@ -56,6 +58,7 @@ def test_rendered_frame_shows_the_qube_and_its_led():
     env.close()
 
 
+@pytest.mark.slow
 @requires_offscreen_gl
 def test_dm_env_physics_renders_from_each_camera():
     env = suite.load("qube", "balance")

@@ -131,6 +131,7 @@ def test_a_closed_dm_env_environment_refuses_to_run():
         env.physics.render(48, 64)
 
 
+@pytest.mark.slow
 @requires_offscreen_gl
 def test_a_rendering_environment_copies_and_renders_the_same_frame():
     env = gymnasium.make("QubeSuite/Balance-v0", render_mode="rgb_array", width=64, height=48)

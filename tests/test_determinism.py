@@ -83,6 +83,7 @@ NOISY_SENSORS = {"effects": {"observation_noise": {"std": [0.01, 0.01, 0.1, 0.1]
 """Effects the hardware domain takes (its plant's parameters are not randomized)."""
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("preset", [None, NOISY_SENSORS])
 def test_hardware_domain_on_the_fast_substitute_is_deterministic_given_the_seed(preset):
     first = dm_trajectory(2, preset, "qube_hardware", "balance")[:60]

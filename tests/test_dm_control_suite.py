@@ -104,6 +104,7 @@ def test_task_conforms_to_spec(domain, task):
     env.close()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("domain, task", all_tasks())
 def test_environment_is_deterministic(domain, task):
     for first, second in zip(make_trajectory(domain, task, seed=0), make_trajectory(domain, task, seed=0),
@@ -132,6 +133,7 @@ def test_observation_arrays_dont_share_memory(domain, task):
     env.close()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("domain, task", all_tasks())
 def test_observations_dont_contain_constant_elements(domain, task):
     env = suite.load(domain, task)
@@ -177,6 +179,7 @@ def test_action_scale_wrapper_maps_minus_one_to_one_onto_the_voltage(domain):
     reference.close()
 
 
+@pytest.mark.slow
 @requires_offscreen_gl
 def test_pixels_wrapper_adds_frames_of_the_qube():
     env = pixels.Wrapper(suite.load("qube", "swingup", task_kwargs={"random": 0}), pixels_only=False,

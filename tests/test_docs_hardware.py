@@ -5,6 +5,7 @@ import pathlib
 import re
 import shlex
 
+import pytest
 from wall_clock import wall_clock_board_fixture  # noqa: F401
 
 from qube_suite import cli
@@ -15,6 +16,7 @@ REAL_BOARD_BLOCKS = re.findall(r"```python\n(.*?)```", SUBSTITUTE[0], re.S)
 SUBSTITUTE_BLOCKS = re.findall(r"```python\n(.*?)```", SUBSTITUTE[1], re.S)
 
 
+@pytest.mark.slow
 def test_the_real_board_examples_run_on_a_real_boards_code_path(wall_clock_board):
     assert len(REAL_BOARD_BLOCKS) == 2
     for index, code in enumerate(REAL_BOARD_BLOCKS):

@@ -30,6 +30,7 @@ def fails_on_seed_one(job):
     return job["seed"]
 
 
+@pytest.mark.slow
 def test_a_tiny_grid_runs_as_trials_and_returns_results_in_job_order(tmp_path):
     jobs = [{"controller": "balance", "task": "balance", "seed": 0},
             {"controller": "swingup", "task": "swingup", "seed": 1}]
@@ -39,6 +40,7 @@ def test_a_tiny_grid_runs_as_trials_and_returns_results_in_job_order(tmp_path):
     assert any(tmp_path.iterdir())  # Ray Tune kept its records there
 
 
+@pytest.mark.slow
 def test_a_failed_trial_is_reported_with_its_job(tmp_path):
     with pytest.raises(RuntimeError, match=r"1 of 2 trials failed: job 1 \(\{'seed': 1\}\)"):
         run_grid(fails_on_seed_one, [{"seed": 0}, {"seed": 1}], storage=tmp_path)

@@ -64,6 +64,7 @@ def test_a_miswired_motor_fails_the_pulse_and_the_command_says_so(monkeypatch, c
     assert "[FAILED] voltage pulse direction" in out and "closed the board" in out
 
 
+@pytest.mark.slow
 def test_check_board_on_a_real_boards_code_path(wall_clock_board, capsys):
     assert cli.main(["check-board", "--board", "qube_servo3_usb", "--non-interactive"]) == 0
     state = wall_clock_board.state()

@@ -53,6 +53,7 @@ def test_shimmy_close_frees_the_board():
     assert_safe(board)
 
 
+@pytest.mark.slow
 def test_garbage_collection_closes_the_board():
     env = load()
     board = driving(env)
@@ -71,6 +72,7 @@ INTERPRETER_EXIT = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 def test_interpreter_exit_closes_the_board(wall_clock_board):
     subprocess.run([sys.executable, "-c", INTERPRETER_EXIT], env=child_environment(wall_clock_board),
                    check=True, timeout=120)
@@ -151,6 +153,7 @@ class RaisingWrapper(gymnasium.Wrapper):
         raise UserCodeError
 
 
+@pytest.mark.slow
 def test_a_wrapper_exception_then_a_pause_is_caught_by_the_watchdog_and_the_next_reset_works(
         wall_clock_board):
     env = RaisingWrapper(gymnasium.make("QubeSuite/BalanceHardware-v0", time_limit=0.4,
@@ -170,6 +173,7 @@ def test_a_wrapper_exception_then_a_pause_is_caught_by_the_watchdog_and_the_next
     assert wall_clock_board.state()["closed_cleanly"]
 
 
+@pytest.mark.slow
 def test_a_time_limit_truncation_then_a_pause_then_reset_works(wall_clock_board):
     env = gymnasium.make("QubeSuite/BalanceHardware-v0", max_episode_steps=20,
                          domain_kwargs={"board": "qube_servo2_usb"})
@@ -212,6 +216,7 @@ RUN = ["-m", "qube_suite.cli", "run", "--domain", "qube_hardware", "--board", "q
        "--task", "balance", "--controller", "balance", "--episodes", "100"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_a_signal_to_the_cli_closes_the_board(wall_clock_board, signum):
     child = subprocess.Popen([sys.executable, *RUN], env=child_environment(wall_clock_board),

@@ -25,6 +25,7 @@ def test_a_missing_native_library_gives_the_sdk_help(monkeypatch):
         QubeServo2(board="qube_servo2_usb").open()
 
 
+@pytest.mark.slow
 def test_the_older_api_without_hil_infinite_runs(wall_clock_board, monkeypatch):
     from quanser.hardware import HIL
 
@@ -34,12 +35,14 @@ def test_the_older_api_without_hil_infinite_runs(wall_clock_board, monkeypatch):
             qube.action([0.0])
 
 
+@pytest.mark.slow
 def test_open_errors_carry_quanser_error_text(wall_clock_board, monkeypatch):
     monkeypatch.delenv("QUBE_SUITE_BOARD_SERVER")                  # nothing connected
     with pytest.raises(BoardOpenError, match="no board is connected"):
         QubeServo2(board="qube_servo2_usb").open()
 
 
+@pytest.mark.slow
 def test_a_watchdog_left_expired_by_an_earlier_run_is_cleared_at_open(wall_clock_board):
     from quanser.hardware import HIL
 
@@ -84,6 +87,7 @@ def test_an_interrupt_inside_idle_leaves_the_watchdog_guarding_the_outputs(monke
         qube.close()
 
 
+@pytest.mark.slow
 def test_a_pendulum_still_swinging_at_open_keeps_the_boards_counts(wall_clock_board):
     """Run after run on one Qube: the next open finds the pendulum still swinging and must not zero
     its encoder there (the board went on counting since it was zeroed at rest)."""

@@ -21,6 +21,7 @@ CONTROLLER_FOR = {"swingup": "swingup", "swingup_sparse": "swingup", "balance": 
                   "swingup_follow_sparse": "follow", "balance_follow_sparse": "follow"}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("task", suite.TASKS_BY_DOMAIN["qube_hardware"])
 def test_every_task_and_its_controller_passes_on_a_qube_servo3_substitute(task):
     result = evaluate(CONTROLLER_FOR[task], domain="qube_hardware", task=task, episodes=1,
@@ -58,6 +59,7 @@ def test_a_qube_servo3_card_names_its_device():
                    domain_kwargs={"board": "qube_servo3_usb", "device": "qube_servo2"})
 
 
+@pytest.mark.slow
 def test_a_real_qube_servo3_runs_through_the_gymnasium_id(wall_clock_board):
     env = gymnasium.make("QubeSuite/BalanceHardware-v0", time_limit=0.5,
                          domain_kwargs={"board": "qube_servo3_usb"})

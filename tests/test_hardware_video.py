@@ -13,6 +13,7 @@ from qube_suite import media, suite
 pytestmark = requires_offscreen_gl
 
 
+@pytest.mark.slow
 def test_no_frame_is_rendered_while_the_board_drives(tmp_path, monkeypatch):
     env = suite.load("qube_hardware", "balance", task_kwargs={"random": 0},
                      environment_kwargs={"time_limit": 0.2})
@@ -31,6 +32,7 @@ def test_no_frame_is_rendered_while_the_board_drives(tmp_path, monkeypatch):
     assert (tmp_path / "balance.mp4").stat().st_size > 0 and traces[0].steps == 50
 
 
+@pytest.mark.slow
 def test_the_cli_films_a_real_board_episode_without_missing_samples(wall_clock_board, tmp_path):
     video = tmp_path / "balance.mp4"
     result = subprocess.run(

@@ -24,6 +24,7 @@ def open_card():
 
 # -- the double holds the real API's contract ------------------------------------------------
 
+@pytest.mark.slow
 def test_double_refuses_wrong_dtypes_and_argument_counts(wall_clock_board):
     card = open_card()
     try:
@@ -43,6 +44,7 @@ def test_double_refuses_wrong_dtypes_and_argument_counts(wall_clock_board):
         card.close()
 
 
+@pytest.mark.slow
 def test_double_task_lifecycle_and_writes_after_close(wall_clock_board):
     from quanser.hardware import HIL, Clock, HILError
 
@@ -64,6 +66,7 @@ def test_double_task_lifecycle_and_writes_after_close(wall_clock_board):
     assert "not open" in error.value.get_error_message()
 
 
+@pytest.mark.slow
 def test_task_read_blocks_until_the_next_sample_and_samples_pile_up(wall_clock_board):
     from quanser.hardware import HIL, Clock, HILError
     from quanser.hardware.enumerations import BufferOverflowMode
@@ -99,6 +102,7 @@ def test_task_read_blocks_until_the_next_sample_and_samples_pile_up(wall_clock_b
     card.close()
 
 
+@pytest.mark.slow
 def test_watchdog_expires_on_the_wall_clock_and_applies_its_expiration_states(wall_clock_board):
     from quanser.hardware import HILError
 
@@ -122,6 +126,7 @@ def test_watchdog_expires_on_the_wall_clock_and_applies_its_expiration_states(wa
 
 # -- the package's real-board code path on it ---------------------------------------------------
 
+@pytest.mark.slow
 def test_wrapper_runs_on_the_wall_clock_board_with_a_busy_core(wall_clock_board, busy_core):
     with QubeServo2(board="qube_servo2_usb") as qube:
         for step in range(500):                                                    # 2 s at 250 Hz
@@ -131,6 +136,7 @@ def test_wrapper_runs_on_the_wall_clock_board_with_a_busy_core(wall_clock_board,
     assert state["closed_cleanly"] and state["applied_voltage"] == 0.0 and not state["amplifier_enabled"]
 
 
+@pytest.mark.slow
 def test_qube_servo3_sets_quanser_card_options_on_a_real_board(wall_clock_board):
     with QubeServo3(board="qube_servo3_usb") as qube:
         qube.action([0.0])
@@ -150,6 +156,7 @@ KILLED_CHILD = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 def test_a_process_killed_mid_episode_leaves_the_board_at_0_volts_with_the_amplifier_off(wall_clock_board):
     child = subprocess.Popen([sys.executable, "-c", KILLED_CHILD], env=child_environment(wall_clock_board),
                              stdout=subprocess.PIPE, text=True)
@@ -169,6 +176,7 @@ def test_a_process_killed_mid_episode_leaves_the_board_at_0_volts_with_the_ampli
         qube.action([0.0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("task", ["balance", "swingup"])
 def test_hardware_domain_resets_and_runs_on_the_wall_clock_board(wall_clock_board, busy_core, task):
     with suite.load("qube_hardware", task, task_kwargs={"random": 0}, environment_kwargs={"time_limit": 0.5},

@@ -147,6 +147,7 @@ def test_arm_beyond_its_limit_stops_the_motor():
         assert qube.board.applied_voltage == 0.5
 
 
+@pytest.mark.slow
 def test_watchdog_expires_when_the_loop_stalls():
     with QubeServo2(realtime=True, watchdog_timeout=0.05) as qube:
         for _ in range(5):
@@ -158,6 +159,7 @@ def test_watchdog_expires_when_the_loop_stalls():
     assert_motor_off(qube.board)
 
 
+@pytest.mark.slow
 def test_missed_samples_are_counted_and_too_many_stop_the_motor():
     with QubeServo2(realtime=True, watchdog_timeout=1.0, max_missed_samples=None) as qube:
         qube.action(1.0)
@@ -175,6 +177,7 @@ def test_missed_samples_are_counted_and_too_many_stop_the_motor():
         assert qube.missed_samples >= 25
 
 
+@pytest.mark.slow
 def test_realtime_runs_at_the_sample_rate():
     with QubeServo2(realtime=True) as qube:
         qube.action(0.0)

@@ -139,6 +139,7 @@ def test_a_history_run_starts_from_a_run_without_and_acts_as_it_did(tmp_path):
                        hyperparameters={"n_steps": 256, "history": 2}, **common)
 
 
+@pytest.mark.slow
 @needs_rl
 def test_a_run_starts_from_a_shipped_policy_file_with_its_actor(tmp_path):
     from qube_suite.training import warm_start

@@ -98,6 +98,7 @@ def test_bad_settings_are_refused():
     assert baselines.make("ilqr", horizon=0.4, cost=Cost(arm=10.0)).kernel.knots == 100
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("domain", ["qube", "qube_hardware"])
 def test_ilqr_swings_up_and_balances_on_both_domains(domain):
     result = evaluate("ilqr", domain=domain, task="swingup", episodes=2, seed=0)
@@ -106,6 +107,7 @@ def test_ilqr_swings_up_and_balances_on_both_domains(domain):
     assert balance.success_rate == 1.0 and balance.mean_return > 2000
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("domain", ["qube", "qube_hardware"])
 def test_cli_evaluates_ilqr_on_the_swingup(domain, capsys):
     assert cli.main(["eval", "--controller", "ilqr", "--task", "swingup", "--domain", domain,

@@ -25,6 +25,7 @@ def led_mask(renderer, physics):
     return np.abs(red - green).sum(axis=2) > 60
 
 
+@pytest.mark.slow
 def test_frames_have_the_size_camera_and_content_asked_for(physics):
     physics.reset_to([0.4, 0.3, 0.0, 0.0])
     frames = {}
@@ -45,6 +46,7 @@ def test_bad_camera_and_size_are_clear_errors(physics):
         media.FrameRenderer(width=0)
 
 
+@pytest.mark.slow
 def test_led_pixels_are_red_at_low_reward_and_green_at_high_reward():
     renderer = media.FrameRenderer("front", width=320, height=240)
     colours = {}
@@ -63,6 +65,7 @@ def test_led_pixels_are_red_at_low_reward_and_green_at_high_reward():
     renderer.close()
 
 
+@pytest.mark.slow
 def test_hardware_frames_show_the_measured_angles():
     hardware = qube_hardware.make_physics()
     renderer = media.FrameRenderer("front_oblique", width=160, height=120)
@@ -88,6 +91,7 @@ def test_hardware_frames_show_the_measured_angles():
         hardware.close()
 
 
+@pytest.mark.slow
 def test_gymnasium_frames_follow_camera_and_size():
     env = gymnasium.make("QubeSuite/Swingup-v0", render_mode="rgb_array", camera="top", width=200, height=100)
     env.reset(seed=0)
@@ -112,6 +116,7 @@ def read_video(path):
     return meta, frames
 
 
+@pytest.mark.slow
 def test_record_video_films_episodes_at_the_fps(tmp_path):
     path = tmp_path / "swing.mp4"
     traces = media.record_video(short_env(), lambda observation: 1.0, path, episodes=2, fps=25,
@@ -135,6 +140,7 @@ def test_video_errors(tmp_path):
         media.write_video(tmp_path / "mixed.mp4", frames, fps=10)
 
 
+@pytest.mark.slow
 def test_write_video_from_gymnasium_frames(tmp_path):
     env = gymnasium.make("QubeSuite/Swingup-v0", render_mode="rgb_array", width=64, height=48)
     env.reset(seed=0)

@@ -25,6 +25,7 @@ def qube_pixels(renderer, physics, camera: str) -> np.ndarray:
     return (types == mujoco.mjtObj.mjOBJ_GEOM) & (geoms >= 0) & (geoms != bench)
 
 
+@pytest.mark.slow
 @requires_offscreen_gl
 @pytest.mark.parametrize("height, width", [(120, 160), (96, 96)], ids=["4:3", "square"])
 def test_every_camera_frames_the_whole_qube_in_every_pose(height, width):

@@ -122,6 +122,7 @@ def test_unknown_policy_names_list_the_shipped_ones():
         load_policy("ppo:juggle")
 
 
+@pytest.mark.slow
 def test_importing_qube_suite_and_running_a_policy_does_not_import_torch():
     code = ("import sys, qube_suite, qube_suite.policies, qube_suite.cli, qube_suite.training\n"
             "from qube_suite.policies import load_policy\n"
@@ -147,6 +148,7 @@ def test_shipped_policies_reach_their_targets_on_unseen_seeds(spec, task, least)
     assert min(result.returns) >= least and result.success_rate == 1.0, result.returns
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("spec", "task"), [("ppo:swingup", "swingup"),
                                            ("ppo:swingup_follow", "swingup_follow")])
 def test_shipped_swingups_transfer_to_the_hardware_substitute(spec, task):
@@ -161,6 +163,7 @@ def test_eval_cli_runs_a_shipped_policy(capsys):
     assert summary["policy"] == "ppo:balance" and summary["mean_return"] > 1900
 
 
+@pytest.mark.slow
 def test_eval_cli_reports_a_corrupt_policy_file_in_one_line(tmp_path):
     bad = tmp_path / "bad.npz"
     bad.write_text("garbage")

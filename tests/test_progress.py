@@ -51,6 +51,7 @@ def test_a_terminal_gets_a_bar_and_quiet_gets_nothing():
     assert quiet.getvalue() == ""
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("argv", [
     ["run", "--task", "balance", "--controller", "balance", "--episodes", "1"],
     ["eval", "--task", "balance", "--controller", "balance", "--episodes", "2"],

@@ -21,6 +21,7 @@ volts = st.floats(allow_nan=True, allow_infinity=True, width=64)
 actions = st.lists(volts, min_size=1, max_size=60)
 
 
+@pytest.mark.slow
 @FEW
 @given(task=st.sampled_from(suite.TASKS_BY_DOMAIN["qube"]), observation=st.sampled_from(["state", "trig"]),
        preset=st.sampled_from([None, "moderate"]), seed=st.integers(0, 2**31 - 1), sequence=actions)
@@ -137,6 +138,7 @@ def test_a_randomization_config_is_valid_or_a_value_error(config, seed):
         assert math.isfinite(value)
 
 
+@pytest.mark.slow
 @FEW
 @given(config=configs, seed=st.integers(0, 1000))
 def test_an_environment_with_any_accepted_config_runs_with_finite_observations(config, seed):

@@ -76,6 +76,7 @@ def test_train_with_a_task_alone_runs_its_recipe_and_with_options_one_run(monkey
     assert cli.main(["train"]) == 2
 
 
+@pytest.mark.slow
 @needs_rl
 def test_a_tiny_recipe_runs_stage_by_stage_and_resumes(tmp_path, capsys):
     tiny = Recipe("tiny", (
@@ -98,6 +99,7 @@ def test_a_tiny_recipe_runs_stage_by_stage_and_resumes(tmp_path, capsys):
     assert (tmp_path / "second" / "training.json").is_file()
 
 
+@pytest.mark.slow
 @needs_rl
 def test_an_interrupted_run_resumes_from_its_latest_checkpoint(tmp_path):
     kwargs = {"num_envs": 2, "evaluations": 2, "eval_episodes": 1, "checkpoints": 2, "progress": False,

@@ -127,6 +127,7 @@ CHILD = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 @pytest.mark.parametrize("domain", ["qube", "qube_hardware"])
 def test_a_process_killed_mid_episode_leaves_every_finished_step(domain, tmp_path):

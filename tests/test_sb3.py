@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 
+@pytest.mark.slow
 def test_importing_qube_suite_does_not_import_stable_baselines3():
     code = "import qube_suite, qube_suite.wrappers, sys; print('stable_baselines3' in sys.modules)"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

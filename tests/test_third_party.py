@@ -38,6 +38,7 @@ def ignoring_by_design():
         yield
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("env_id", ALL_IDS)
 def test_env_api(env_id):
     env = gymnasium.make(env_id)
@@ -73,6 +74,7 @@ def test_env_determinism_rollout(env_id):
     env_2.close()
 
 
+@pytest.mark.slow
 @requires_offscreen_gl
 @pytest.mark.parametrize("env_id", ["QubeSuite/Swingup-v0", "QubeSuite/BalanceFollowHardware-v0"])
 def test_render_modes(env_id):
@@ -151,6 +153,7 @@ def test_shimmy_round_trip_including_close(domain):
         assert board.applied_voltage == 0.0 and not board.amplifier_enabled
 
 
+@pytest.mark.slow
 @requires_offscreen_gl
 def test_gymnasium_record_video_writes_an_episode(tmp_path):
     pytest.importorskip("moviepy")  # in the media extra

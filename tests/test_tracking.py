@@ -23,12 +23,14 @@ def test_tracking_needs_the_targets_speed():
     assert lagging.success_rate == 1.0 and lagging.follow_error > 0.3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("domain", ["qube", "qube_hardware"])
 def test_follow_keeps_the_pendulum_up_on_jumping_targets(domain):
     result = evaluate("follow", domain=domain, task="swingup_follow", episodes=3, seed=0)
     assert result.success_rate == 1.0  # a stiffer arm would track closer, and drop the pendulum here
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("domain", ["qube", "qube_hardware"])
 def test_ilqr_tracks_the_sine(domain):
     result = evaluate("ilqr", domain=domain, task="balance_follow", episodes=2, seed=3, task_kwargs=SINE)
@@ -36,6 +38,7 @@ def test_ilqr_tracks_the_sine(domain):
     assert result.follow_error < 0.05
 
 
+@pytest.mark.slow
 def test_ilqr_follows_two_second_steps_in_simulation():
     result = evaluate("ilqr", task="swingup_follow", episodes=2, seed=0, task_kwargs=STEPS)
     assert min(result.returns) > 1800  # swung up and kept up

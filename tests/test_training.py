@@ -82,6 +82,7 @@ def test_train_cli_runs_a_tiny_training(tmp_path, capsys, algo):
     assert abs(policy([0.0, 0.1, 0.0, 0.0])) <= 3.0
 
 
+@pytest.mark.slow
 @needs_rl
 def test_training_on_the_hardware_substitute_and_with_randomization(tmp_path):
     for kwargs in ({"domain": "qube_hardware"}, {"randomization": "sim2real"}):
@@ -91,6 +92,7 @@ def test_training_on_the_hardware_substitute_and_with_randomization(tmp_path):
         assert result.steps == 256 and result.policy.exists()
 
 
+@pytest.mark.slow
 @needs_rl
 def test_init_continues_from_a_previous_run(tmp_path):
     first = training.train("balance", steps=256, num_envs=1, evaluations=1, eval_episodes=1, checkpoints=1,
@@ -130,6 +132,7 @@ def test_exploring_starts_start_some_episodes_anywhere():
     assert (np.array([ExploringStarts(hanging, 0.0)(random) for _ in range(20)])[:, 1] == np.pi).all()
 
 
+@pytest.mark.slow
 @needs_rl
 def test_a_follow_task_starts_from_its_plain_task_with_the_target_weighted_zero(tmp_path):
     plain = training.train("swingup", steps=256, num_envs=1, evaluations=1, eval_episodes=1, checkpoints=1,
@@ -148,6 +151,7 @@ def test_a_follow_task_starts_from_its_plain_task_with_the_target_weighted_zero(
                        init=follow.directory, hyperparameters={"n_steps": 256})
 
 
+@pytest.mark.slow
 @needs_rl
 def test_ppo_starts_from_a_shipped_policy_on_a_target_schedule(tmp_path):
     shipped = load_policy("ppo:balance_follow")

@@ -102,6 +102,7 @@ def test_jitter_split_into_several_physics_steps_per_world():
     run_side_by_side("QubeSuite/BalanceFollow-v0", EVERYTHING, 80, time_limit=0.3, control_frequency=100.0)
 
 
+@pytest.mark.slow
 def test_many_worlds_on_the_thread_pool():
     run_side_by_side("QubeSuite/Swingup-v0", "sim2real", 40, seeds=list(range(20)), threads=2, time_limit=0.1)
 
