@@ -52,6 +52,26 @@ TARGET_JUMP_SPEED = 5.0
 """A target moving faster than this (rad/s) between two calls jumped: its speed counts as 0."""
 
 
+
+class TargetSpeed:
+    """The arm target's speed (rad/s), from its change over the last control period; a change faster
+    than `TARGET_JUMP_SPEED` is a jump, which reads as 0."""
+
+    def __init__(self, control_frequency: float):
+        self.control_frequency = control_frequency
+        self.reset()
+
+    def reset(self) -> None:
+        self._last: float | None = None
+
+    def __call__(self, target: float) -> float:
+        speed = 0.0
+        if self._last is not None:
+            speed = (target - self._last) * self.control_frequency
+            speed = speed if abs(speed) < TARGET_JUMP_SPEED else 0.0
+        self._last = target
+        return speed
+
 class Follow(Controller):
     """Balances (swinging up first if needed) with the arm following the observed target.
 
@@ -66,21 +86,17 @@ class Follow(Controller):
         super().__init__(control_frequency, voltage_limit, parameters, latency_steps)
         self.swingup = SwingUp(control_frequency, voltage_limit, parameters)
         self.gain = lqr_design(control_frequency, parameters, TRACKING_WEIGHTS)[0][0]
-        self.control_frequency = control_frequency
+        self.target_speed = TargetSpeed(control_frequency)
         self.reset()
 
     def reset(self) -> None:
         super().reset()
         self.swingup.reset()
-        self._last_target: float | None = None
+        self.target_speed.reset()
 
     def voltage_for(self, state: np.ndarray, target: float = 0.0) -> float:
         """Voltage (V) for `state` [theta, alpha, dtheta, dalpha] with the arm's target at `target` (rad)."""
-        speed = 0.0
-        if self._last_target is not None:
-            speed = (target - self._last_target) * self.control_frequency
-            speed = speed if abs(speed) < TARGET_JUMP_SPEED else 0.0
-        self._last_target = target
+        speed = self.target_speed(target)
         set_point = arm_set_point(state[0], target)
         volts = self.swingup.voltage_for(state, set_point)
         if not self.swingup.balancing:

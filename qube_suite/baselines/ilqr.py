@@ -41,7 +41,7 @@ import numpy as np
 from qube_suite.angles import wrap_angle
 from qube_suite.baselines._ilqr import Kernel
 from qube_suite.baselines.base import Controller
-from qube_suite.baselines.follow import REFERENCE_LIMIT, TARGET_JUMP_SPEED
+from qube_suite.baselines.follow import REFERENCE_LIMIT, TargetSpeed
 from qube_suite.baselines.lqr import BalanceLQR
 from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.baselines.swingup import CATCH_VOLTAGE
@@ -104,7 +104,7 @@ class IterativeLQR(Controller):
         if not (isinstance(horizon, (int, float)) and horizon * control_frequency >= 2):
             raise ValueError(f"horizon must cover at least two control periods, got {horizon!r} s")
         self.cost = cost or Cost()
-        self.control_frequency = control_frequency
+        self.target_speed = TargetSpeed(control_frequency)
         self.iterations = iterations
         self.balance = BalanceLQR(control_frequency, voltage_limit, parameters)
         knots = round(horizon * control_frequency)
@@ -119,15 +119,11 @@ class IterativeLQR(Controller):
         self.kernel.X[:] = 0.0
         self.kernel.regularization = 0.0
         self._started = False
-        self._last_target: float | None = None
+        self.target_speed.reset()
 
     def voltage_for(self, state: np.ndarray, target: float = 0.0) -> float:
         """Voltage (V) for `state` [theta, alpha, dtheta, dalpha] with the arm's target at `target` (rad)."""
-        speed = 0.0
-        if self._last_target is not None:
-            speed = (target - self._last_target) * self.control_frequency
-            speed = speed if abs(speed) < TARGET_JUMP_SPEED else 0.0
-        self._last_target = target
+        speed = self.target_speed(target)
         kernel = self.kernel
         state = np.array(state, dtype=np.float64)
         if self._started:
