@@ -20,7 +20,6 @@ tolerances (`identifiability.Fitted`):
 from __future__ import annotations
 
 import numpy as np
-from mujoco import sysid
 
 from qube_suite import parameters
 from qube_suite.calibration.fit import NAMES, SCALES, FitResult
@@ -52,7 +51,13 @@ def bias_bound(name: str) -> float:
 
 
 def curvature_half_widths(result: FitResult) -> np.ndarray:
-    """95 % half-widths (scaled unknowns) from the fit's curvature alone (`mujoco.sysid`)."""
+    """95 % half-widths (scaled unknowns) from the fit's curvature alone (`mujoco.sysid`, which needs
+    MuJoCo's `sysid` extra: `pip install 'qube_suite[sysid]'`)."""
+    from mujoco import sysid
+
+    if not hasattr(sysid, "calculate_intervals"):  # the module is there, its dependencies are not
+        raise ImportError("curvature intervals need mujoco.sysid's dependencies: "
+                          "pip install 'qube_suite[sysid]'")
     jacobian = result.jacobian()
     _, half_widths = sysid.calculate_intervals([result.residual(result.x)], jacobian)
     return np.asarray(half_widths)
