@@ -162,7 +162,7 @@ class Physics(MeasuredState, control.Physics):
     run inside the loop; videos are filmed from the recorded trace after an episode."""
 
     physics_error = None
-    """Always None: faults on hardware raise instead (see the README's safety table)."""
+    """Always None: faults on hardware raise instead (see the safety table in docs/safety.md)."""
 
     def __init__(self, control_frequency: float = 250.0, board: str = SIMULATED,
                  plant: dict[str, float] | None = None, realtime: bool | None = None,

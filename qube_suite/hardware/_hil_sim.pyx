@@ -59,8 +59,8 @@ For tests and for studying the sim-to-real gap: `true_state()`,
 `set_true_state()`, `applied_voltage`, `amplifier_enabled`, `time`, `led` and
 `plant`; in real-time mode they too catch up with the wall clock first.
 
-Faults, injected on purpose to test what drives the board (the README's safety
-table says what the package does about each):
+Faults, injected on purpose to test what drives the board (the safety table in
+docs/safety.md says what the package does about each):
 
 * `set_amplifier_fault(True)`: the amplifier reports a fault (digital input 0)
   and drives nothing, as in a thermal shutdown, until `set_amplifier_fault(False)`;
