@@ -79,21 +79,11 @@ class SwingupFollow(Swingup):
     As `Swingup`: the arm's +-90 degree limit is absolute, not relative to the target.
 
     ## Arguments
-    `sparse`, `voltage_limit`, `observation`, `random`, and the target schedule
-    (`qube_suite.tasks.follow`; angles in rad):
-
-    | `target` | theta_target | keywords (defaults) |
-    |---|---|---|
-    | "jump" (default) | U(-A, A), redrawn after exponential times of mean H | A, H (80 deg, 0.5 s) |
-    | "steps" | U(-A, A), redrawn every H | A, H (60 deg, 2 s) |
-    | "sine" | A sin(2 pi f t) | A, f (45 deg, 0.2 Hz) |
-    | "fixed" | a constant | `target_angle` (0) |
-    | a CSV file's path | piecewise constant: rows `time,target` (s, rad) | none |
-
-    A = `target_amplitude`, H = `target_hold_time`, f = `target_frequency`.
-
-    Random schedules draw from the task's random state. A keyword the schedule
-    does not take, an amplitude beyond 80 degrees or a malformed file is a
+    `sparse`, `voltage_limit`, `observation`, `random`, and the target schedule:
+    `target` ("jump" by default, "steps", "sine", "fixed" or a CSV file's path) with
+    `target_amplitude`, `target_hold_time`, `target_frequency`, `target_angle`; their
+    table, defaults and file format are in `qube_suite.tasks.follow`. A keyword the
+    schedule does not take, an amplitude beyond 80 degrees or a malformed file is a
     ValueError. The sparse variant follows the same schedule.
 
     ## Version history
