@@ -3,7 +3,9 @@
 Subclass `QubeTask` (the voltage action, the observation and the arm's safe set
 come with it), say where episodes start and what earns reward, and run it in an
 `Environment` on the Qube domain: it then has the dm_env and Gymnasium APIs, the
-LED, randomization and rendering like the suite's own tasks.
+LED, randomization and rendering like the suite's own tasks. Its formulas use numpy
+(`np.exp`, not `math.exp`), so it is batch-safe: registered with
+`qube_suite.tasks.register`, it would also run in the vector environment.
 
     python examples/custom_task.py [--goal 45] [--short]
 """
@@ -19,7 +21,7 @@ from qube_suite import to_gymnasium
 from qube_suite.angles import wrap_angle
 from qube_suite.domains import qube
 from qube_suite.environment import Environment
-from qube_suite.tasks import QubeTask
+from qube_suite.tasks import QubeTask, check_batch_safety
 
 ARM_TOLERANCE = 0.1
 """Width (rad) of the reward's bell around the arm's goal."""
@@ -59,8 +61,8 @@ class ArmToAngle(QubeTask):
     def initial_state(self, random: np.random.RandomState) -> np.ndarray:
         return np.array([random.uniform(-0.05, 0.05), math.pi, 0.0, 0.0])
 
-    def get_reward(self, physics) -> float:
-        arm = math.exp(-(((physics.arm_angle() - self.goal) / ARM_TOLERANCE) ** 2))
+    def get_reward(self, physics):
+        arm = np.exp(-(((physics.arm_angle() - self.goal) / ARM_TOLERANCE) ** 2))
         swing = abs(wrap_angle(physics.pendulum_angle() - math.pi)) / math.pi
         return arm * (1.0 - swing)
 
@@ -78,6 +80,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     goal = math.radians(args.goal)
     time_limit = 1.0 if args.short else 4.0
+
+    check_batch_safety(ArmToAngle)  # what registering the task would check; raises if not batch-safe
 
     # dm_env: the Qube domain's physics and the task in an Environment.
     env = Environment(qube.make_physics(), ArmToAngle(goal=goal, random=0), time_limit=time_limit)

@@ -12,6 +12,7 @@ from dm_env import specs
 
 from qube_suite import randomization as randomization_
 from qube_suite.arguments import is_number
+from qube_suite.episode_rules import judge_step
 from qube_suite.tasks.base import voltage_from_action
 
 DEFAULT_CONTROL_FREQUENCY = 250.0
@@ -41,7 +42,8 @@ class Environment(control.Environment):
     """A Qube task on a Qube domain, as a `dm_env.Environment`.
 
     Like dm_control's `control.Environment` (and an instance of it, so tools made
-    for dm_control accept it), with the Qube's episode rules:
+    for dm_control accept it), with the Qube's episode rules (`qube_suite.episode_rules`, shared
+    with the vector environment):
 
     * `step(action)` validates the action before anything moves: a bad action
       raises ValueError and leaves the environment as it was;
@@ -197,20 +199,12 @@ class Environment(control.Environment):
         self._physics.end_episode()
 
     def _finish_step(self, action) -> tuple[float, float | None]:
-        physics, task = self._physics, self._task
+        physics = self._physics
         self._step_count += 1
-        if physics.physics_error is not None:
-            self._reset_next_step = True
-            physics.end_episode()
-            for observer in self.observers:
-                observer.step_done(self, action, 0.0, 0.0)
-            return 0.0, 0.0
-        task.after_step(physics)
-        reward = task.get_reward(physics)
+        reward, terminated, truncated = judge_step(self._task, physics, physics.physics_error is not None,
+                                                   self._step_count, self._episode_steps)
         physics.set_led(reward_colour(reward))
-        discount = task.get_termination(physics)
-        if discount is None and self._step_count >= self._episode_steps:
-            discount = 1.0
+        discount = 0.0 if terminated else 1.0 if truncated else None
         if discount is not None:
             self._reset_next_step = True
             physics.end_episode()

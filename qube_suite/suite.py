@@ -27,7 +27,7 @@ _DOMAIN_MODULES = {
 ENVIRONMENT_KWARGS = ("control_frequency", "time_limit", "flat_observation")
 """Keys `environment_kwargs` may hold."""
 
-TASK_KWARGS = keywords_of(QubeTask) + SCHEDULE_KEYWORDS
+TASK_KWARGS = keywords_of(QubeTask, skip=("worlds",)) + SCHEDULE_KEYWORDS
 """Keys `task_kwargs` may hold (every task takes the same, but for the target schedule's, which only
 the follow tasks take; sparse variants are separate tasks)."""
 
@@ -94,21 +94,27 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
     return Environment(physics, task, randomization=randomization, **environment_kwargs)
 
 
-def make_task(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None = None) -> QubeTask:
+def make_task(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None = None,
+              worlds: int | None = None) -> QubeTask:
     """The task `task_name` of `domain_name`, made with `task_kwargs` (see `load`).
+
+    `worlds`: None for one Qube, or N for a task evaluating a batch of N Qubes (the
+    vector environment's; `random` then seeds world i with `random + i`).
 
     Raises:
         ValueError: unknown names or invalid arguments; the message lists valid values.
     """
     if domain_name not in _DOMAIN_MODULES:
         raise ValueError(f"unknown domain {domain_name!r}; valid domains: {', '.join(_DOMAIN_MODULES)}")
-    if task_name not in TASKS_BY_DOMAIN[domain_name]:
+    if task_name not in _TASKS:  # the registry as it is now: tasks registered after import too
         raise ValueError(f"unknown task {task_name!r} for domain {domain_name!r}; valid tasks: "
-                         f"{', '.join(TASKS_BY_DOMAIN[domain_name])}")
+                         f"{', '.join(_TASKS)}")
     task_kwargs = dict(task_kwargs or {})
     check_keywords(task_kwargs, TASK_KWARGS, "task_kwargs")
     schedule = sorted(set(task_kwargs) & set(SCHEDULE_KEYWORDS))
     if schedule and task_name not in _TASKS.tagged("follow"):
         raise ValueError(f"{', '.join(schedule)}: only the follow tasks "
                          f"({', '.join(_TASKS.tagged('follow'))}) have a target schedule")
+    if worlds is not None:
+        task_kwargs["worlds"] = worlds
     return _TASKS[task_name](**task_kwargs)

@@ -75,10 +75,10 @@ def test_refused_vector_action_changes_nothing_in_any_world(actions):
         return env
 
     env, twin = make(), make()
-    randoms = [random.get_state()[1].copy() for random in env.unwrapped.task.random]
+    randoms = [random.get_state()[1].copy() for random in env.unwrapped.task.randoms]
     with pytest.raises(ValueError):
         env.step(actions)
-    for random, before in zip(env.unwrapped.task.random, randoms, strict=True):
+    for random, before in zip(env.unwrapped.task.randoms, randoms, strict=True):
         np.testing.assert_array_equal(random.get_state()[1], before)
     for _ in range(30):
         action = np.full((2, 1), 2.0, np.float32)

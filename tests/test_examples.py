@@ -44,3 +44,9 @@ def test_sb3_example_trains_or_says_how_to_install(capsys, tmp_path):
         assert example.main(["--short", "--plot", str(tmp_path / "ppo.png")]) == 0
         assert "PPO after 256 steps on balance" in capsys.readouterr().out
         assert (tmp_path / "ppo.png").stat().st_size > 10000
+
+
+def test_custom_task_is_batch_safe():
+    from qube_suite.tasks import check_batch_safety
+
+    check_batch_safety(load("custom_task").ArmToAngle)

@@ -111,7 +111,7 @@ def fail(*args, **kwargs):
     raise UserCodeError
 
 
-@pytest.mark.parametrize("where", ["get_reward", "get_observation", "get_termination"])
+@pytest.mark.parametrize("where", ["get_reward", "get_observation", "in_safe_set"])
 def test_an_exception_in_the_task_after_the_board_read_stops_the_motor(where, monkeypatch):
     with load() as env:
         board = driving(env)

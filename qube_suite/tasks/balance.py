@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from qube_suite.tasks.goal import GoalTask
-from qube_suite.tasks.registry import SUITE
+from qube_suite.tasks.registry import register
 
 PENDULUM_LIMIT = math.radians(20.0)
 """The pendulum leaving +-20 degrees of upright ends the episode."""
@@ -97,21 +97,21 @@ class BalanceFollow(Balance):
     follows_target = True
 
 
-@SUITE.add("benchmarking")
+@register("benchmarking")
 def balance(**kwargs) -> Balance:
     return Balance(**kwargs)
 
 
-@SUITE.add("sparse")
+@register("sparse")
 def balance_sparse(**kwargs) -> Balance:
     return Balance(sparse=True, **kwargs)
 
 
-@SUITE.add("benchmarking", "follow")
+@register("benchmarking", "follow")
 def balance_follow(**kwargs) -> BalanceFollow:
     return BalanceFollow(**kwargs)
 
 
-@SUITE.add("sparse", "follow")
+@register("sparse", "follow")
 def balance_follow_sparse(**kwargs) -> BalanceFollow:
     return BalanceFollow(sparse=True, **kwargs)

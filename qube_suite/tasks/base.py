@@ -4,14 +4,14 @@ Tasks use only the domain interface (`qube_suite.domains.interface.QubePhysics`)
 so they run unchanged in simulation and on hardware. Their formulas (reward,
 safe set, observation, task processes) take floats from one Qube or arrays from a
 batch of Qubes alike (`qube_suite.domains.qube_batch.QubeBatch`, used by the vector
-environment after `use_batch`), so each is written once.
+environment through a task made with `worlds=N`), so each is written once; a
+registered task is checked for that (`qube_suite.tasks.batch_safety`).
 """
 
 from __future__ import annotations
 
 import collections
 import math
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -40,14 +40,17 @@ ACTION_SHAPE = (1,)
 """Shape of an action: one motor voltage (V)."""
 
 
-def voltage_from_action(action: Any, limit: float, allow_number: bool = True) -> float:
-    """The motor voltage for `action`: one finite number, clipped to +-`limit` (V).
+def voltage_from_action(action: Any, limit: float, worlds: int | None = None, allow_number: bool = True):
+    """The motor voltage for `action`, finite and clipped to +-`limit` (V).
 
-    Takes an array-like of shape (1,), or, if `allow_number` (dm_env, where
-    controllers return a float), also a plain number (shape ()). A wrong shape
-    raises ValueError("Action dimension mismatch ...", Gymnasium's wording), as do
-    NaN, inf and non-numbers. See docs/conventions.md.
+    One Qube (`worlds` None): an array-like of shape (1,), or, if `allow_number`
+    (dm_env, where controllers return a float), a plain number; returns a float.
+    A batch of `worlds` Qubes: shape (worlds, 1); returns a new float64 array of shape
+    (worlds,). A wrong shape raises ValueError("Action dimension mismatch ...",
+    Gymnasium's wording), as do NaN, inf and non-numbers. See docs/conventions.md.
     """
+    if worlds is not None:
+        return _voltages_from_actions(action, limit, worlds)
     if type(action) is np.ndarray and action.shape == ACTION_SHAPE and action.dtype.kind == "f":
         volts = action.item()  # the usual action: checked by the comparison below
         if -limit <= volts <= limit:  # False for NaN
@@ -69,25 +72,65 @@ def voltage_from_action(action: Any, limit: float, allow_number: bool = True) ->
     return min(max(volts, -limit), limit)
 
 
+def _voltages_from_actions(actions: Any, limit: float, worlds: int) -> np.ndarray:
+    try:
+        actions = np.asarray(actions)
+    except Exception as error:  # ragged sequences and other oddities
+        raise ValueError(f"actions must be {worlds} numbers (V), got {actions!r}") from error
+    if actions.shape != (worlds, *ACTION_SHAPE):
+        raise ValueError(f"Action dimension mismatch: actions have shape ({worlds}, 1), got shape "
+                         f"{actions.shape}")
+    if actions.dtype.kind not in "fiu":
+        raise ValueError(f"actions must be numbers (V), got dtype {actions.dtype}")
+    volts = actions.reshape(worlds).astype(np.float64)
+    if not np.isfinite(volts).all():
+        raise ValueError(f"actions must be finite, got {actions.reshape(-1)[~np.isfinite(volts)][:5]}")
+    return np.minimum(np.maximum(volts, -limit, out=volts), limit, out=volts)
+
+
 class QubeTask(base.Task):
     """Base of the Qube tasks.
+
+    A task made with `worlds=N` evaluates a batch of N Qubes (the vector
+    environment's): its accessors' arrays go in, arrays with one value per world
+    come out, and world i draws from `randoms[i]`. The episode ends by
+    `in_safe_set`, for one Qube and a batch alike (`qube_suite.episode_rules`);
+    `get_termination`, dm_control's view of it, is not to be overridden.
 
     Args:
         voltage_limit: largest motor voltage (V) the action can ask for; actions
             beyond it are clipped. In (0, 10].
         observation: "state" ([theta, alpha, dtheta, dalpha]) or "trig"
             ([cos theta, sin theta, cos alpha, sin alpha, dtheta, dalpha]).
-        random: seed or `numpy.random.RandomState` for everything random in the task.
+        random: seed or `numpy.random.RandomState` for everything random in the task;
+            with `worlds`, an integer seed s (world i is seeded s + i) or None.
+        worlds: None for one Qube, or the number of Qubes in a batch.
     """
 
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if cls.get_termination is not QubeTask.get_termination:
+            raise TypeError(f"{cls.__name__} overrides get_termination: a Qube task says when its episode "
+                            "terminates with in_safe_set (for one Qube and for a batch), from which "
+                            "get_termination follows; see docs/write-a-task.md")
+
     def __init__(self, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT, observation: str = "state",
-                 random: int | np.random.RandomState | None = None):
+                 random: int | np.random.RandomState | None = None, worlds: int | None = None):
         if not (is_number(voltage_limit) and 0.0 < voltage_limit <= MAX_VOLTAGE_LIMIT):
             raise ValueError(f"voltage_limit must be in (0, {MAX_VOLTAGE_LIMIT:g}] V, got {voltage_limit!r}")
         if observation not in OBSERVATION_MODES:
             raise ValueError(f"observation must be one of {OBSERVATION_MODES}, got {observation!r}")
         check_seed(random)
+        if worlds is not None:
+            if not (type(worlds) is int and worlds >= 1):
+                raise ValueError(f"worlds must be None or a positive integer, got {worlds!r}")
+            if not (random is None or isinstance(random, int)):
+                raise ValueError(f"random must be an integer seed or None for a batch of Qubes, "
+                                 f"got {random!r}")
         super().__init__(random=random)
+        self._worlds = worlds
+        self._randoms = None if worlds is None else (self.random, *(
+            np.random.RandomState(None if random is None else random + world) for world in range(1, worlds)))
         self._voltage_limit = float(voltage_limit)
         self._trig = observation == "trig"
         limit = np.full(ACTION_SHAPE, self._voltage_limit)
@@ -99,18 +142,25 @@ class QubeTask(base.Task):
         """Largest motor voltage (V)."""
         return self._voltage_limit
 
+    @property
+    def worlds(self) -> int | None:
+        """Qubes in the batch this task evaluates, or None for one Qube."""
+        return self._worlds
+
+    @property
+    def randoms(self) -> tuple[np.random.RandomState, ...] | None:
+        """A batch's per-world random states (world 0's is `random`), or None for one Qube."""
+        return self._randoms
+
     # -- episode ----------------------------------------------------------------
 
-    def initialize_episode(self, physics) -> None:
-        """Start from a state drawn by `initial_state` from `self.random`."""
-        self.start_episode(physics, self.random)
+    def initialize_episode(self, physics, world: int | None = None) -> None:
+        """Reset the Qube to a start drawn by `initial_state` and restart the task's processes.
 
-    def start_episode(self, physics, random: np.random.RandomState, world: int | None = None) -> None:
-        """Reset the Qube to a start drawn from `random` and restart the task's processes.
-
-        `world`: which Qube of a batch starts (the others go on); None for one Qube.
+        `world`: which Qube of a batch starts, drawing from `randoms[world]` (the others go
+        on); None for one Qube, drawing from `random`.
         """
-        state = self.initial_state(random)
+        state = self.initial_state(self.random if world is None else self._randoms[world])
         if world is None:
             physics.reset_to(state)
         else:
@@ -120,18 +170,10 @@ class QubeTask(base.Task):
         """[theta, alpha, dtheta, dalpha] (rad, rad/s) to start an episode from, drawn from `random`."""
         raise NotImplementedError
 
-    def use_batch(self, randoms: Sequence[np.random.RandomState]) -> None:
-        """Evaluate a batch of `len(randoms)` Qubes from now on, world i drawing from `randoms[i]`.
-
-        The task's processes then hold one value per world, `self.random` is the
-        sequence of per-world random states, and `get_reward`, `in_safe_set`,
-        `observation_values` and `after_step` take a `QubeBatch` and return arrays.
-        """
-        self._random = tuple(randoms)
-
     def before_step(self, action, physics) -> None:
-        """Validate and limit `action`, then apply it; a bad action raises and changes nothing."""
-        physics.set_voltage(voltage_from_action(action, self._voltage_limit))
+        """Validate and limit `action` (shape (1,), or (worlds, 1) in a batch), then apply it; a bad
+        action raises and changes nothing."""
+        physics.set_voltage(voltage_from_action(action, self._voltage_limit, self._worlds))
 
     def after_step(self, physics) -> None:
         """Advance the task's own processes (none by default)."""
@@ -141,7 +183,8 @@ class QubeTask(base.Task):
         return abs(physics.arm_angle()) <= ARM_LIMIT
 
     def get_termination(self, physics) -> float | None:
-        """0.0 (terminal, discount 0) once the Qube leaves the safe set, else None."""
+        """dm_control's termination of one Qube: 0.0 (terminal, discount 0) once it leaves the safe set,
+        else None."""
         return None if self.in_safe_set(physics) else 0.0
 
     # -- specs and observations ---------------------------------------------------

@@ -8,7 +8,7 @@ import numpy as np
 
 from qube_suite.angles import wrap_angle
 from qube_suite.tasks.goal import GoalTask
-from qube_suite.tasks.registry import SUITE
+from qube_suite.tasks.registry import register
 
 START_ARM_RANGE = 0.1
 """Start: theta uniform in +-0.1 rad, ..."""
@@ -57,11 +57,11 @@ class Dampen(GoalTask):
         return wrap_angle(physics.pendulum_angle() - math.pi)
 
 
-@SUITE.add("benchmarking")
+@register("benchmarking")
 def dampen(**kwargs) -> Dampen:
     return Dampen(**kwargs)
 
 
-@SUITE.add("sparse")
+@register("sparse")
 def dampen_sparse(**kwargs) -> Dampen:
     return Dampen(sparse=True, **kwargs)

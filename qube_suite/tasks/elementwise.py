@@ -27,3 +27,10 @@ def cos(x):
 def sin(x):
     """sin(x), x in rad."""
     return np.sin(x) if isinstance(x, np.ndarray) else math.sin(x)
+
+
+def where(condition, x, y):
+    """`x` where `condition` holds, else `y`, elementwise for arrays."""
+    if type(condition) is np.ndarray:
+        return np.where(condition, x, y)
+    return x if condition else y

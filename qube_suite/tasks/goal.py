@@ -43,11 +43,9 @@ class GoalTask(QubeTask):
         super().__init__(**kwargs)
         self._sparse = bool(sparse)
         self._target = make_schedule(target, **schedule) if self.follows_target else None
-
-    def use_batch(self, randoms) -> None:
-        super().use_batch(randoms)
-        if self._target is not None:
-            self._target = self._target.batch(len(self._random))
+        if self._target is not None and self.worlds is not None:
+            self._target = self._target.batch(self.worlds)
+        self._target_random = self.random if self.worlds is None else self.randoms
 
     @property
     def sparse(self) -> bool:
@@ -72,14 +70,14 @@ class GoalTask(QubeTask):
             return rewards.goal_reward(pendulum_error, arm_error)
         return rewards.angle_reward(pendulum_error, arm_error)
 
-    def start_episode(self, physics, random, world=None) -> None:
-        super().start_episode(physics, random, world)
-        if self._target is not None:
-            self._target.reset(0.0, random, world)  # episodes start at time 0
+    def initialize_episode(self, physics, world=None) -> None:
+        super().initialize_episode(physics, world)
+        if self._target is not None:  # episodes start at time 0
+            self._target.reset(0.0, self.random if world is None else self.randoms[world], world)
 
     def after_step(self, physics) -> None:
         if self._target is not None:
-            self._target.update(physics.time(), self.random)
+            self._target.update(physics.time(), self._target_random)
 
     def observation_spec(self, physics) -> collections.OrderedDict:
         spec = super().observation_spec(physics)

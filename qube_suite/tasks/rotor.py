@@ -9,7 +9,7 @@ import numpy as np
 from qube_suite.angles import TAU, wrap_angle
 from qube_suite.tasks.base import QubeTask
 from qube_suite.tasks.elementwise import maximum
-from qube_suite.tasks.registry import SUITE
+from qube_suite.tasks.registry import register
 
 START_NOISE = 0.01
 """Start: hanging at rest, each state variable uniform within +-0.01 (rad, rad/s)."""
@@ -46,11 +46,7 @@ class Rotor(QubeTask):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self._counter = RevolutionCounter()
-
-    def use_batch(self, randoms) -> None:
-        super().use_batch(randoms)
-        self._counter = RevolutionCounter(len(self._random))
+        self._counter = RevolutionCounter(self.worlds)
 
     @property
     def revolutions(self):
@@ -61,8 +57,8 @@ class Rotor(QubeTask):
     def initial_state(self, random: np.random.RandomState) -> np.ndarray:
         return random.uniform(-START_NOISE, START_NOISE, 4) + np.array([0.0, math.pi, 0.0, 0.0])
 
-    def start_episode(self, physics, random, world=None) -> None:
-        super().start_episode(physics, random, world)
+    def initialize_episode(self, physics, world=None) -> None:
+        super().initialize_episode(physics, world)
         alpha = physics.pendulum_angle()
         self._counter.reset(alpha if world is None else float(alpha[world]), world)
 
@@ -109,6 +105,6 @@ class RevolutionCounter:
         self.revolutions = maximum(self.revolutions, revolutions)
 
 
-@SUITE.add("benchmarking")
+@register("benchmarking")
 def rotor(**kwargs) -> Rotor:
     return Rotor(**kwargs)

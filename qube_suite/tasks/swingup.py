@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from qube_suite.tasks.goal import GoalTask
-from qube_suite.tasks.registry import SUITE
+from qube_suite.tasks.registry import register
 
 START_NOISE = 0.05
 """Start: angles (rad) and velocities (rad/s) uniform within +-0.05 of hanging at rest."""
@@ -94,21 +94,21 @@ class SwingupFollow(Swingup):
     follows_target = True
 
 
-@SUITE.add("benchmarking")
+@register("benchmarking")
 def swingup(**kwargs) -> Swingup:
     return Swingup(**kwargs)
 
 
-@SUITE.add("sparse")
+@register("sparse")
 def swingup_sparse(**kwargs) -> Swingup:
     return Swingup(sparse=True, **kwargs)
 
 
-@SUITE.add("benchmarking", "follow")
+@register("benchmarking", "follow")
 def swingup_follow(**kwargs) -> SwingupFollow:
     return SwingupFollow(**kwargs)
 
 
-@SUITE.add("sparse", "follow")
+@register("sparse", "follow")
 def swingup_follow_sparse(**kwargs) -> SwingupFollow:
     return SwingupFollow(sparse=True, **kwargs)

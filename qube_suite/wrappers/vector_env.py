@@ -15,7 +15,22 @@ from qube_suite import suite
 from qube_suite.arguments import check_keywords, keywords_of
 from qube_suite.domains.qube_batch import QubeBatch
 from qube_suite.environment import DEFAULT_CONTROL_FREQUENCY, DEFAULT_TIME_LIMIT, episode_steps
+from qube_suite.episode_rules import judge_step
 from qube_suite.wrappers.gym_env import action_space, observation_space
+
+
+class CommandedBatch(QubeBatch):
+    """A `QubeBatch` that takes its voltages as one Qube does, by the domain interface's
+    `set_voltage` (from the task's `before_step`), and holds them at the next `advance`."""
+
+    def set_voltage(self, volts: np.ndarray) -> None:
+        """Command one voltage per world (V, validated and limited), held from the next `advance`."""
+        self._command = volts
+
+    def advance(self) -> None:
+        """Hold the commanded voltages for one control period (`QubeBatch.step`)."""
+        self.step(self._command)
+
 
 ResetHook = Callable[[QubeBatch, int, np.random.RandomState], None]
 """`hook(batch, world, random)`, called when `world` starts an episode, before the task draws its start."""
@@ -28,12 +43,14 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
     worlds advance in one call to MuJoCo's rollout on a thread pool
     (`qube_suite.domains.qube_batch.QubeBatch`); rewards, terminations, observations
     and resets come from the same task definitions as the single environments,
-    evaluated on arrays. World i reset with seed s replays exactly the episode of a
-    single environment reset with seed s under the same actions.
+    evaluated on arrays (a task made with `worlds=N`), under the same episode rules
+    (`qube_suite.episode_rules`): this class adds only the batching, Gymnasium's
+    autoreset and the info. World i reset with seed s replays exactly the episode of
+    a single environment reset with seed s under the same actions.
 
     ## Spaces
     Batched versions of the single environment's: actions (N, 1) float32 volts
-    ((N,) is accepted too); observations (N, 4), (N, 5) in follow tasks, (N, 6) or
+; observations (N, 4), (N, 5) in follow tasks, (N, 6) or
     (N, 7) with `observation="trig"`, float32. Actions beyond the voltage limit are
     clipped; NaN/inf, a wrong shape or a non-number raise ValueError before any
     world moves.
@@ -113,16 +130,14 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         seed = task_kwargs.pop("random", None)
         if not (seed is None or isinstance(seed, int)):
             raise ValueError(f"random must be an integer seed or None for a vector environment, got {seed!r}")
-        self._task = suite.make_task("qube", task, task_kwargs)
+        self._task = suite.make_task("qube", task, {**task_kwargs, "random": seed}, worlds=num_envs)
         self._steps_per_episode = episode_steps(time_limit, control_frequency)
         config = None if randomization is None else randomization_.load(randomization)
-        self._batch = QubeBatch(num_envs, control_frequency, threads)
+        self._batch = CommandedBatch(num_envs, control_frequency, threads)
         self._randomizer = None if config is None else randomization_.BatchRandomizer(
             config, self._batch, 1.0 / control_frequency)
         self._reset_hook = reset_hook
-        self._randoms = [np.random.RandomState(None if seed is None else seed + i) for i in range(num_envs)]
-        self._task.use_batch(self._randoms)
-        self._limit = self._task.voltage_limit
+        self._randoms = self._task.randoms
 
         self.num_envs = num_envs
         self.single_action_space = action_space(self._task.action_spec(None))
@@ -180,7 +195,8 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
 
     def step(self, actions):
         """Apply one voltage per world for one control period; see the class docstring for autoreset."""
-        volts = self._volts(actions)
+        batch, task = self._batch, self._task
+        task.before_step(actions, batch)  # checks the actions before anything moves
         if not self._started:
             raise RuntimeError("call reset() before step()")
         restarting = None
@@ -189,19 +205,12 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
                 raise RuntimeError(f"worlds {np.flatnonzero(self._ended).tolist()} have ended; reset them "
                                    "with reset(options={'reset_mask': mask}) before step()")
             restarting = self._ended.copy()  # NEXT_STEP: these worlds start over instead of stepping
-        batch, task = self._batch, self._task
-        batch.step(volts)
+        batch.advance()
         self._step_counts += 1
         diverged = batch.diverged if restarting is None else batch.diverged & ~restarting
         draws = {} if restarting is None else self._start(np.flatnonzero(restarting))
-        task.after_step(batch)
-        rewards = task.get_reward(batch)
-        terminated = ~task.in_safe_set(batch)
-        if diverged.any():
-            rewards[diverged] = 0.0
-            terminated |= diverged
-        truncated = self._step_counts >= self._steps_per_episode
-        truncated &= ~terminated
+        rewards, terminated, truncated = judge_step(task, batch, diverged, self._step_counts,
+                                                    self._steps_per_episode)
         if restarting is not None:
             rewards[restarting] = 0.0
             terminated[restarting] = truncated[restarting] = False
@@ -241,26 +250,11 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
                 draws[world] = self._randomizer.start_world(world, random)
             if self._reset_hook is not None:
                 self._reset_hook(self._batch, world, random)
-            self._task.start_episode(self._batch, random, world)
+            self._task.initialize_episode(self._batch, world)
         self._batch.measure_afresh(worlds)  # as a single environment's reset context does on closing
         self._step_counts[worlds] = 0
         self._ended[worlds] = False
         return draws
-
-    def _volts(self, actions) -> np.ndarray:
-        try:
-            actions = np.asarray(actions)
-        except Exception as error:  # ragged sequences and other oddities
-            raise ValueError(f"actions must be {self.num_envs} numbers (V), got {actions!r}") from error
-        if actions.shape != (self.num_envs, 1):
-            raise ValueError(f"Action dimension mismatch: actions have shape ({self.num_envs}, 1), got shape "
-                             f"{actions.shape}")
-        if actions.dtype.kind not in "fiu":
-            raise ValueError(f"actions must be numbers (V), got dtype {actions.dtype}")
-        volts = actions.reshape(self.num_envs).astype(np.float64)
-        if not np.isfinite(volts).all():
-            raise ValueError(f"actions must be finite, got {actions.reshape(-1)[~np.isfinite(volts)][:5]}")
-        return np.minimum(np.maximum(volts, -self._limit, out=volts), self._limit, out=volts)  # clip
 
     def _observations(self) -> np.ndarray:
         return np.stack(self._task.observation_values(self._batch), axis=1, dtype=np.float32)
