@@ -2,6 +2,7 @@
 
     python benchmarks/revision_step_speed.py 4ddcb67            # that commit against this tree
     python benchmarks/revision_step_speed.py 4ddcb67 HEAD --env QubeSuite/Balance-v0
+    python benchmarks/revision_step_speed.py main --num-envs 1024 --steps 200   # the vector env
 
 Each version is exported (`git archive`; the working tree for "."), and rounds of
 timed steps alternate between them, each in a fresh subprocess, so that load from
@@ -44,6 +45,25 @@ for _ in range(5):
 print(best)
 """
 
+VECTOR_TIMER = """
+import sys, time
+import gymnasium, numpy as np
+import qube_suite
+env = gymnasium.make_vec(sys.argv[1], num_envs=int(sys.argv[3]))
+steps = int(sys.argv[2])
+actions = np.zeros((env.num_envs, 1), np.float32)
+env.reset(seed=0)
+for _ in range(steps):                                # warm up; ended worlds restart (autoreset)
+    env.step(actions)
+best = float("inf")
+for _ in range(5):
+    start = time.process_time()
+    for _ in range(steps):
+        env.step(actions)
+    best = min(best, (time.process_time() - start) / steps)
+print(best)
+"""
+
 
 def export(revision: str, folder: pathlib.Path) -> pathlib.Path:
     """The package source of `revision` ("." is the working tree) as an importable folder."""
@@ -57,9 +77,12 @@ def export(revision: str, folder: pathlib.Path) -> pathlib.Path:
     return target
 
 
-def seconds_per_step(source: pathlib.Path, env_id: str, steps: int) -> float:
-    """Best of five timed runs of `steps` steps with the package at `source`, in a new process."""
-    result = subprocess.run([sys.executable, "-c", TIMER, env_id, str(steps)], check=True,
+def seconds_per_step(source: pathlib.Path, env_id: str, steps: int, num_envs: int | None = None) -> float:
+    """Best of five timed runs of `steps` steps with the package at `source`, in a new process;
+    of the vector env of `num_envs` worlds if given."""
+    command = ([TIMER, env_id, str(steps)] if num_envs is None
+               else [VECTOR_TIMER, env_id, str(steps), str(num_envs)])
+    result = subprocess.run([sys.executable, "-c", *command], check=True,
                             capture_output=True, text=True, cwd=source,
                             env={"PYTHONPATH": str(source), "MUJOCO_GL": "disable"})
     return float(result.stdout.split()[-1])
@@ -73,18 +96,21 @@ def main() -> int:
     parser.add_argument("--env", default="QubeSuite/Swingup-v0", help="Gymnasium id")
     parser.add_argument("--rounds", type=int, default=7, help="alternating rounds (default: 7)")
     parser.add_argument("--steps", type=int, default=2000, help="steps per timed run (episode length)")
+    parser.add_argument("--num-envs", type=int, default=None,
+                        help="time the vector env (gymnasium.make_vec) of this many worlds instead")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         sources = {name: export(name, pathlib.Path(folder)) for name in (args.before, args.after)}
         times: dict[str, list[float]] = {name: [] for name in sources}
         for _ in range(args.rounds):
             for name, source in sources.items():
-                times[name].append(seconds_per_step(source, args.env, args.steps))
+                times[name].append(seconds_per_step(source, args.env, args.steps, args.num_envs))
     for name, values in times.items():
         print(f"{name:>12}: best {min(values) * 1e6:6.2f} us/step (CPU), "
               f"median {statistics.median(values) * 1e6:6.2f}")
     before, after = (min(times[name]) for name in sources)
-    print(f"{args.env}: {args.after} takes {after / before:.3f} x the time of {args.before} per step")
+    what = args.env if args.num_envs is None else f"{args.env} x {args.num_envs} worlds"
+    print(f"{what}: {args.after} takes {after / before:.3f} x the time of {args.before} per step")
     return 0
 
 
