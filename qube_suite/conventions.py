@@ -58,16 +58,24 @@ class ObservationLayout:
 
     def split(self, observation: Any) -> tuple[np.ndarray, float]:
         """([theta, alpha, dtheta, dalpha] (rad, rad/s), theta_target (rad, 0 without a target)) from
-        a dm_env observation (mapping with `state` and maybe `target`) or a flat Gymnasium one.
+        an observation of this layout: a dm_env one (mapping with `state` and, if it has one,
+        `target`, read by name) or a flat Gymnasium vector of `size` values.
 
-        Raises ValueError if the observation does not have this layout's size.
+        Raises ValueError if the observation does not have this layout.
         """
         if isinstance(observation, Mapping):
-            flat = np.concatenate([np.ravel(observation["state"]), np.ravel(observation.get("target", ()))])
+            state = np.ravel(observation["state"])
+            target = observation.get("target")
+            if state.size != self.state_size or (self.target and target is None):
+                raise ValueError(f"not an observation of layout {self}: state of {state.size} values"
+                                 f"{'' if target is not None else ', no target'}")
+            flat = state if target is None else np.concatenate([state, np.ravel(target)])
         else:
             flat = np.ravel(np.asarray(observation, dtype=np.float64))
-        if flat.size != self.size:
-            raise ValueError(f"an observation of layout {self} has {self.size} values, got {flat.size}")
+            target = self.target or None
+            if flat.size != self.size:
+                raise ValueError(f"not an observation of layout {self}: {self.size} values expected, "
+                                 f"got {flat.size}")
         if self.mode == "trig":
             flat = np.concatenate([[math.atan2(flat[1], flat[0]), math.atan2(flat[3], flat[2])], flat[4:]])
-        return flat[:4].astype(np.float64), float(flat[4]) if self.target else 0.0
+        return flat[:4].astype(np.float64), 0.0 if target is None else float(flat[4])

@@ -4,7 +4,8 @@
     result = evaluate("balance", domain="qube", task="balance", episodes=20, seed=0)
     result.mean_return, result.success_rate
 
-Success, per task (documented in docs/controllers.md):
+Success is the task's own rule (`QubeTask.at_goal` at every step, `QubeTask.succeeded`
+at the episode's end; documented in docs/controllers.md):
   * swing-up and balance tasks: not terminated, and the pendulum within 10 degrees
     of upright throughout the final 2 s;
   * dampen tasks: not terminated, and the pendulum within 10 degrees of hanging
@@ -19,7 +20,6 @@ return hides it: the arm's share of the reward is small).
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 from collections.abc import Callable
 from typing import Any
@@ -29,11 +29,7 @@ import numpy as np
 from qube_suite import baselines, suite
 from qube_suite.policies import load_policy, names_a_policy, shipped
 from qube_suite.progress import Progress
-
-SETTLED_TIME = 2.0
-"""Success looks at the final 2 s of an episode."""
-GOAL_TOLERANCE = math.radians(10.0)
-ROTOR_REVOLUTIONS = 5
+from qube_suite.tasks.base import success_steps
 
 
 @dataclasses.dataclass
@@ -81,24 +77,6 @@ class EvaluationResult:
         }
 
 
-def settled_steps(control_frequency: float) -> int:
-    """Control steps in SETTLED_TIME at `control_frequency` (Hz); at least 1."""
-    return max(1, round(SETTLED_TIME * control_frequency))
-
-
-def succeeded(task: str, pendulum_errors: np.ndarray, terminated: bool, revolutions: int,
-              control_frequency: float) -> bool:
-    """The task's success rule (see the module docstring) for one finished episode.
-
-    `pendulum_errors`: |alpha - goal| (rad) at every step of the episode.
-    """
-    if task == "rotor":
-        return revolutions >= ROTOR_REVOLUTIONS
-    settled = settled_steps(control_frequency)
-    return (not terminated and len(pendulum_errors) >= settled
-            and bool(np.all(pendulum_errors[-settled:] <= GOAL_TOLERANCE)))
-
-
 def policy_for(spec: str, environment) -> Callable[[Any], float]:
     """The policy `spec` names, for a suite `environment`: a controller of
     `baselines.CONTROLLERS` built by `baselines.for_environment`, a shipped learned policy
@@ -106,7 +84,9 @@ def policy_for(spec: str, environment) -> Callable[[Any], float]:
     if spec in baselines.CONTROLLERS:
         return baselines.for_environment(spec, environment)
     if names_a_policy(spec):
-        return load_policy(spec)
+        policy = load_policy(spec)
+        policy.observation_layout = environment.task.observation_layout
+        return policy
     raise ValueError(f"unknown controller or policy {spec!r}: valid controllers are "
                      f"{', '.join(baselines.CONTROLLERS)}; shipped policies "
                      f"{', '.join(shipped()) or 'none'}; or give the path of a .npz policy file")
@@ -148,9 +128,8 @@ def _evaluate(policy, environment, domain: str, task: str, episodes: int, seed: 
     name = policy if isinstance(policy, str) else getattr(policy, "name", type(policy).__name__)
     if isinstance(policy, str):
         policy = policy_for(policy, environment)
-    hanging_goal = task.startswith("dampen")
-    follows_target = getattr(environment.task, "follows_target", False)
-    settled = settled_steps(environment.control_frequency)
+    follows_target = environment.task.follows_target
+    settled = success_steps(environment.control_frequency)
     returns, successes, step_times, step_cpu_times = [], [], [], []
     arm_errors = []
     bar = Progress(episodes, "episode", f"{name} on {domain}/{task}", quiet=not progress)
@@ -160,7 +139,7 @@ def _evaluate(policy, environment, domain: str, task: str, episodes: int, seed: 
             if hasattr(policy, "reset"):
                 policy.reset()
             timestep = environment.reset()
-            episode_return, errors = 0.0, []
+            episode_return, at_goal = 0.0, []
             while not timestep.last():
                 start, cpu_start = time.perf_counter(), time.thread_time()
                 action = policy(timestep.observation)
@@ -168,14 +147,12 @@ def _evaluate(policy, environment, domain: str, task: str, episodes: int, seed: 
                 step_cpu_times.append(time.thread_time() - cpu_start)
                 timestep = environment.step(action)
                 episode_return += timestep.reward
-                alpha = environment.physics.pendulum_angle()
-                errors.append(math.pi - abs(alpha) if hanging_goal else abs(alpha))
-                if follows_target and len(errors) > settled:
+                at_goal.append(environment.task.at_goal(environment.physics))
+                if follows_target and len(at_goal) > settled:
                     arm_errors.append(abs(environment.physics.arm_angle() - environment.task.target))
             returns.append(float(episode_return))
-            successes.append(succeeded(task, np.array(errors), timestep.discount == 0.0,
-                                       getattr(environment.task, "revolutions", 0),
-                                       environment.control_frequency))
+            successes.append(environment.task.succeeded(np.array(at_goal), timestep.discount == 0.0,
+                                                        environment.control_frequency))
             bar.set_postfix(mean_return=f"{np.mean(returns):.1f}")
             bar.update()
     finally:

@@ -12,8 +12,10 @@ from qube_suite import baselines, parameters, suite
 from qube_suite.angles import wrap_angle
 from qube_suite.baselines import dampen, lqr
 from qube_suite.baselines.model import RigidBodyModel
+from qube_suite.conventions import ObservationLayout
 from qube_suite.domains import qube
 from qube_suite.environment import Environment
+from qube_suite.evaluation import policy_for
 from qube_suite.tasks import SUITE, Dampen, Swingup
 
 ROBUSTNESS = [{"pendulum_mass": 1.2 * parameters.NOMINAL["pendulum_mass"]},
@@ -391,20 +393,50 @@ def test_mpc_spreads_its_planning_over_the_control_steps():
     assert np.median(times) < 2e-3 and np.percentile(times, 90) < 2 * np.median(times) + 1e-3
 
 
-@pytest.mark.parametrize("observation, state, target", [
-    ({"state": np.array([1.0, 2.0, 3.0, 4.0])}, [1, 2, 3, 4], 0.0),
-    ({"state": np.array([1.0, 2.0, 3.0, 4.0]), "target": np.array([0.5])}, [1, 2, 3, 4], 0.5),
-    (np.array([1.0, 2.0, 3.0, 4.0, 0.5], np.float32), [1, 2, 3, 4], 0.5),
-    ([math.cos(1.0), math.sin(1.0), math.cos(2.0), math.sin(2.0), 3.0, 4.0], [1, 2, 3, 4], 0.0),
+COS_SIN = [math.cos(1.0), math.sin(1.0), math.cos(2.0), math.sin(2.0), 3.0, 4.0]
+
+
+@pytest.mark.parametrize("layout, observation, state, target", [
+    (ObservationLayout(), {"state": np.array([1.0, 2.0, 3.0, 4.0])}, [1, 2, 3, 4], 0.0),
+    (ObservationLayout(), {"state": np.array([1.0, 2.0, 3.0, 4.0]), "target": [0.5]}, [1, 2, 3, 4], 0.5),
+    (ObservationLayout(target=True), np.array([1.0, 2.0, 3.0, 4.0, 0.5], np.float32), [1, 2, 3, 4], 0.5),
+    (ObservationLayout("trig"), COS_SIN, [1, 2, 3, 4], 0.0),
+    (ObservationLayout("trig", target=True), [*COS_SIN, -0.5], [1, 2, 3, 4], -0.5),
 ])
-def test_controllers_read_every_observation_layout(observation, state, target):
-    parsed_state, parsed_target = baselines.split_observation(observation)
+def test_controllers_read_every_observation_layout(layout, observation, state, target):
+    parsed_state, parsed_target = layout.split(observation)
     np.testing.assert_allclose(parsed_state, state, rtol=1e-6)
     assert parsed_target == pytest.approx(target)
+
+
+@pytest.mark.parametrize("layout, observation", [
+    (ObservationLayout(), np.zeros(5)),                       # a target the layout does not have
+    (ObservationLayout(target=True), np.zeros(4)),            # no target
+    (ObservationLayout(target=True), {"state": np.zeros(4)}),
+    (ObservationLayout("trig"), np.zeros(4)),
+    (ObservationLayout(), {"state": np.zeros(6)}),
+])
+def test_an_observation_of_another_layout_is_refused_not_guessed(layout, observation):
+    with pytest.raises(ValueError, match="not an observation of layout"):
+        layout.split(observation)
+
+
+def test_controllers_and_policies_read_the_tasks_layout():
+    env = suite.load("qube", "swingup_follow", task_kwargs={"observation": "trig", "random": 0})
+    assert env.task.observation_layout == ObservationLayout("trig", target=True)
+    controller = baselines.for_environment("mpc", env)
+    assert controller.observation_layout == env.task.observation_layout
+    assert baselines.make("follow").observation_layout == ObservationLayout(target=True)
+    assert baselines.make("swingup").observation_layout == ObservationLayout()
+    policy = policy_for("ppo:swingup_follow", env)
+    assert policy.observation_layout == env.task.observation_layout
+    timestep = env.reset()
+    plain = policy_for("ppo:swingup_follow", suite.load("qube", "swingup_follow"))
+    state, target = env.physics.qube_state(), env.task.target
+    expected = plain({"state": state, "target": [target]})
+    assert policy(timestep.observation) == pytest.approx(expected, abs=1e-9)
 
 
 def test_unknown_controller_lists_valid_names():
     with pytest.raises(ValueError, match="valid controllers: balance, swingup, dampen, follow, rotor, mpc"):
         baselines.make("pid")
-    with pytest.raises(ValueError, match="not a Qube observation"):
-        baselines.split_observation(np.zeros(3))

@@ -7,25 +7,41 @@ import numpy as np
 import pytest
 
 from qube_suite import baselines, cli, evaluate, suite
-from qube_suite.evaluation import succeeded
+from qube_suite.angles import wrap_angle
+from qube_suite.tasks import Balance, Dampen, Rotor, Swingup
+from qube_suite.tasks.batch_safety import ProbeQubes
 
 SETTLED = 500  # 2 s at 250 Hz
 
 
 def test_success_rule_needs_the_final_two_seconds_at_the_goal():
-    good = np.r_[np.full(1000, 3.0), np.full(SETTLED, math.radians(9.9))]
-    assert succeeded("swingup", good, terminated=False, revolutions=0, control_frequency=250)
+    good = np.r_[np.zeros(1000, dtype=bool), np.ones(SETTLED, dtype=bool)]
+    assert Swingup().succeeded(good, terminated=False, control_frequency=250)
     late_slip = good.copy()
-    late_slip[-10] = math.radians(10.5)
-    assert not succeeded("swingup", late_slip, terminated=False, revolutions=0, control_frequency=250)
-    assert not succeeded("balance", good, terminated=True, revolutions=0, control_frequency=250)
-    assert not succeeded("dampen", good[:100], terminated=False, revolutions=0, control_frequency=250)
+    late_slip[-10] = False
+    assert not Swingup().succeeded(late_slip, terminated=False, control_frequency=250)
+    assert not Balance().succeeded(good, terminated=True, control_frequency=250)
+    assert not Dampen().succeeded(good[:100], terminated=False, control_frequency=250)
+
+
+@pytest.mark.parametrize(("task", "goal"), [(Swingup, 0.0), (Balance, 0.0), (Dampen, math.pi)])
+def test_at_goal_is_the_pendulum_within_10_degrees_of_the_tasks_goal(task, goal):
+    for offset, expected in [(9.9, True), (-9.9, True), (10.5, False), (-10.5, False)]:
+        alpha = wrap_angle(goal + math.radians(offset))
+        assert task().at_goal(ProbeQubes([1.2, alpha, 3.0, 5.0], 0.0, None)) is expected
 
 
 def test_rotor_success_counts_revolutions():
-    errors = np.zeros(2048)
-    assert succeeded("rotor", errors, terminated=True, revolutions=5, control_frequency=250)
-    assert not succeeded("rotor", errors, terminated=False, revolutions=4, control_frequency=250)
+    def spun(turns):
+        rotor, qube = Rotor(), ProbeQubes([0.0, math.pi, 0.0, 0.0], 0.0, None)
+        rotor.initialize_episode(qube)
+        for alpha in np.linspace(math.pi, math.pi + (turns + 0.25) * 2 * math.pi, 40 * turns + 11)[1:]:
+            qube.move_to([0.0, wrap_angle(alpha), 0.0, 0.0], 0.0)
+            rotor.after_step(qube)
+        return rotor
+
+    assert spun(5).succeeded([False], terminated=True, control_frequency=250)
+    assert not spun(4).succeeded([True] * 1000, terminated=False, control_frequency=250)
 
 
 def test_evaluate_is_seeded_and_scores_a_controller():

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from qube_suite import cli, evaluate
+from qube_suite.conventions import ObservationLayout
 from qube_suite.policies import MLPPolicy, features, load, load_policy, save, shipped
 
 SHIPPED = ("ppo:balance", "ppo:balance_follow", "ppo:dampen", "ppo:rotor", "ppo:swingup",
@@ -54,7 +55,12 @@ def test_numpy_inference_on_hand_made_weights(squash):
         assert policy(state) == pytest.approx(expected(alpha, dtheta, squash), abs=1e-12)
         assert policy(OrderedDict(state=state)) == policy(state)             # dm_env observation
         trig = [math.cos(0.2), math.sin(0.2), math.cos(alpha), math.sin(alpha), dtheta, 0.7]
-        assert policy(np.array(trig, np.float32)) == pytest.approx(policy(state), abs=1e-5)
+        with pytest.raises(ValueError, match="not an observation of layout"):  # not guessed from its length
+            policy(np.array(trig, np.float32))
+        policy.observation_layout = ObservationLayout("trig")  # a trig task's, as `policy_for` sets it
+        assert policy(np.array(trig)) == pytest.approx(policy(OrderedDict(state=trig)), abs=1e-12)
+        assert policy(np.array(trig, np.float32)) == pytest.approx(policy.actions(state[None])[0], abs=1e-5)
+        policy.observation_layout = ObservationLayout()
     np.testing.assert_allclose(policy.actions(np.array([[0.2, 0.1, 0.0, 0.7]])), [expected(0.1, 0.0, squash)])
 
 

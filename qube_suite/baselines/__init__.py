@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 from qube_suite.arguments import check_keywords, is_number, keywords_of
-from qube_suite.baselines.base import Controller, split_observation
+from qube_suite.baselines.base import Controller
 from qube_suite.baselines.dampen import Dampen
 from qube_suite.baselines.follow import Follow
 from qube_suite.baselines.ilqr import IterativeLQR
@@ -50,15 +50,18 @@ def make(name: str, **kwargs) -> Controller:
 def for_environment(name: str, environment, **kwargs) -> Controller:
     """The controller called `name` for a suite `environment`: built for its control frequency,
     its task's voltage limit and its domain's `latency_steps` (and, on hardware, the device's motor
-    data: `physics.design_parameters()`); `kwargs` add or override settings."""
+    data: `physics.design_parameters()`), reading the task's observation layout; `kwargs` add or
+    override settings."""
     settings = {"control_frequency": environment.control_frequency,
                 "voltage_limit": environment.task.voltage_limit,
                 "latency_steps": environment.physics.latency_steps}
     design = getattr(environment.physics, "design_parameters", None)  # e.g. a Qube-Servo 3's motor
     if design is not None and name in CONTROLLERS and "parameters" in keywords_of(CONTROLLERS[name]):
         settings["parameters"] = design()
-    return make(name, **{**settings, **kwargs})
+    controller = make(name, **{**settings, **kwargs})
+    controller.observation_layout = environment.task.observation_layout
+    return controller
 
 
 __all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "Dampen", "Follow", "IterativeLQR", "Rotor",
-           "SamplingMPC", "SwingUp", "for_environment", "lqr_gain", "make", "split_observation"]
+           "SamplingMPC", "SwingUp", "for_environment", "lqr_gain", "make"]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
@@ -10,25 +9,7 @@ import numpy as np
 
 from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.baselines.observer import StateObserver
-from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
-
-
-def split_observation(observation: Any) -> tuple[np.ndarray, float]:
-    """([theta, alpha, dtheta, dalpha], theta_target) from any Qube observation.
-
-    Accepts a dm_env observation (mapping with `state` and maybe `target`) or a
-    flat Gymnasium vector: 4 values (state), 5 (state, target), 6 (trig state) or
-    7 (trig state, target). The target is 0 when absent.
-    """
-    if isinstance(observation, Mapping):
-        flat = np.concatenate([np.ravel(observation["state"]), np.ravel(observation.get("target", ()))])
-    else:
-        flat = np.ravel(np.asarray(observation, dtype=np.float64))
-    if flat.size in (6, 7):  # trig layout
-        flat = np.concatenate([[math.atan2(flat[1], flat[0]), math.atan2(flat[3], flat[2])], flat[4:]])
-    if flat.size not in (4, 5):
-        raise ValueError(f"not a Qube observation: {flat.size} values")
-    return flat[:4].astype(np.float64), float(flat[4]) if flat.size == 5 else 0.0
+from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT, ObservationLayout
 
 
 class Controller:
@@ -43,6 +24,10 @@ class Controller:
     nominal model). Subclasses set `name` and `tasks` (the suite tasks it is meant
     for) and implement `voltage_for`; `reset` is called at the start of each episode.
 
+    Observations are read through `observation_layout`, the task's
+    (`QubeTask.observation_layout`, set by `qube_suite.baselines.for_environment`); by
+    default the state layout, with a target if the controller `follows_target`.
+
     Args:
         control_frequency: control steps per second (Hz) the controller is designed for.
         voltage_limit: output clip (V).
@@ -54,12 +39,15 @@ class Controller:
 
     name: ClassVar[str]
     tasks: ClassVar[tuple[str, ...]]
+    follows_target: ClassVar[bool] = False
+    """Whether the controller is made only for tasks whose observation has an arm target."""
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
                  parameters: Mapping[str, float] | None = None, latency_steps: int = 0):
         self.voltage_limit = voltage_limit
         self.model = RigidBodyModel.from_parameters(parameters)
         self.observer = StateObserver(self.model, control_frequency, latency_steps)
+        self.observation_layout = ObservationLayout(target=self.follows_target)
 
     def reset(self) -> None:
         """Forget everything about the previous episode."""
@@ -67,7 +55,7 @@ class Controller:
 
     def __call__(self, observation: Any) -> float:
         """Motor voltage (V) for `observation`."""
-        state, target = split_observation(observation)
+        state, target = self.observation_layout.split(observation)
         estimate = self.observer(state)
         unmodelled = self.model.arm_torque(estimate[1], *self.observer.unmodelled_accelerations)
         volts = self.voltage_for(estimate, target) - unmodelled / self.model.torque_per_volt

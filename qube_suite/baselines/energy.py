@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 
 from qube_suite.baselines.model import RigidBodyModel
-from qube_suite.tasks.base import ARM_LIMIT
+from qube_suite.conventions import ARM_LIMIT
 
 ENERGY_BAND = 0.1
 """Energy error (fraction of 2 mp g l) at which the pump reaches full torque."""

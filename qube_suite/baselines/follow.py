@@ -40,7 +40,7 @@ import numpy as np
 from qube_suite.baselines.base import Controller
 from qube_suite.baselines.lqr import lqr_design
 from qube_suite.baselines.swingup import SwingUp
-from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
+from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
 
 REFERENCE_STEP = math.radians(20.0)
 """Largest distance (rad) of the arm set-point from the arm."""
@@ -80,6 +80,7 @@ class Follow(Controller):
 
     name = "follow"
     tasks = ("balance_follow", "balance_follow_sparse", "swingup_follow", "swingup_follow_sparse")
+    follows_target = True
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
                  parameters: Mapping[str, float] | None = None, latency_steps: int = 0):

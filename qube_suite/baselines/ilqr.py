@@ -45,7 +45,7 @@ from qube_suite.baselines.follow import REFERENCE_LIMIT, TargetSpeed
 from qube_suite.baselines.lqr import BalanceLQR
 from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.baselines.swingup import CATCH_VOLTAGE
-from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
+from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
 
 DIAGONAL = (np.arange(4), np.arange(4))
 

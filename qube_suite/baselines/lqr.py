@@ -10,8 +10,8 @@ import scipy.linalg
 from qube_suite import parameters as params
 from qube_suite.baselines.base import Controller
 from qube_suite.baselines.linearization import linearize
+from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
 from qube_suite.domains import qube
-from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
 
 STATE_WEIGHTS = (2.0, 20.0, 0.05, 0.5)
 """Default LQR state weights on [theta, alpha, dtheta, dalpha] (rad, rad/s)."""

@@ -32,8 +32,8 @@ from qube_suite.baselines.base import Controller
 from qube_suite.baselines.follow import arm_set_point
 from qube_suite.baselines.lqr import BalanceLQR
 from qube_suite.baselines.swingup import CATCH_VOLTAGE, RELEASE_VOLTAGE
+from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
 from qube_suite.domains import qube
-from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
 
 ARM_MARGIN = math.radians(80.0)
 """Planned trajectories pay a large cost for the arm beyond +-80 degrees."""

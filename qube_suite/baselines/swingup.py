@@ -33,7 +33,7 @@ import numpy as np
 from qube_suite.baselines.base import Controller
 from qube_suite.baselines.energy import ENERGY_BAND, EnergyShaping
 from qube_suite.baselines.lqr import BalanceLQR
-from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
+from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
 
 ENERGY_MARGIN = 0.03
 """Set energy above upright at rest, as a fraction of 2 mp g l: covers friction and model error."""

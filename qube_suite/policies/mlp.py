@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from qube_suite.baselines.base import split_observation
+from qube_suite.conventions import ObservationLayout
 from qube_suite.policies.features import FEATURE_MAPS
 from qube_suite.policies.history import History, input_size
 
@@ -52,10 +52,10 @@ REQUIRED_META = ("format", "feature_map", "activation", "squash", "epsilon", "cl
 class MLPPolicy:
     """A learned policy with the controller interface: `voltage = policy(observation)`.
 
-    Takes any Qube observation of its task (a dm_env mapping or a flat Gymnasium
-    vector, plain or trig layout) and returns the motor voltage (V), within
-    +-`voltage_limit`. A policy with `history` > 0 remembers its last observations
-    and voltages: call `reset` before each episode; others keep no memory.
+    Takes an observation of its task (a dm_env mapping or a flat Gymnasium vector, of
+    `observation_layout`) and returns the motor voltage (V), within +-`voltage_limit`.
+    A policy with `history` > 0 remembers its last observations and voltages: call
+    `reset` before each episode; others keep no memory.
     """
 
     def __init__(self, weights: Sequence[np.ndarray], biases: Sequence[np.ndarray],
@@ -77,6 +77,10 @@ class MLPPolicy:
         self._scale = 1.0 / np.sqrt(self.observation_var + float(self.meta["epsilon"]))
         self._clip = float(self.meta["clip"])
         self._size = int(self.meta["observation_size"])
+        self.observation_layout = ObservationLayout(target=self._size == 5)
+        """How calls read observations: by default the layout the policy was trained on (its file's
+        `observation_size`); set the task's (`QubeTask.observation_layout`) to run it on another,
+        e.g. the trig one."""
         self.history = int(self.meta.get("history", 0))
         self._memory: History | None = None
         self._last: tuple[np.ndarray, np.ndarray] | None = None
@@ -120,7 +124,7 @@ class MLPPolicy:
 
     def __call__(self, observation: Any) -> float:
         """Motor voltage (V) for one observation of the policy's task."""
-        state, target = split_observation(observation)
+        state, target = self.observation_layout.split(observation)
         row = np.append(state, target) if self._size == 5 else state
         return float(self.actions(row[None, :])[0])
 

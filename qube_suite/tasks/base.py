@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import collections
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -19,25 +20,23 @@ from dm_control.suite import base
 from dm_env import specs
 
 from qube_suite.arguments import check_seed, is_number
+from qube_suite.conventions import (  # noqa: F401  (ARM_LIMIT and the voltage limits also as tasks.base's)
+    ACTION_SHAPE,
+    ARM_LIMIT,
+    DEFAULT_VOLTAGE_LIMIT,
+    MAX_VOLTAGE_LIMIT,
+    OBSERVATION_MODES,
+    ObservationLayout,
+)
 from qube_suite.tasks.elementwise import cos, sin
 
-DEFAULT_VOLTAGE_LIMIT = 3.0
-"""Default motor voltage limit (V): the smallest in [3, 10] V that allows a swing-up
-within the arm's +-90 degrees (3 V does; `benchmarks/voltage_limit.py`, docs/model.md)."""
-
-MAX_VOLTAGE_LIMIT = 10.0
-"""Largest voltage limit a task accepts (V), the range of the model's motor."""
-
-ARM_LIMIT = math.radians(90.0)
-"""The arm leaving +-90 degrees ends the episode (the encoder cable)."""
-
-OBSERVATION_MODES = ("state", "trig")
-"""`state`: [theta, alpha, dtheta, dalpha]; `trig`: [cos theta, sin theta, cos alpha,
-sin alpha, dtheta, dalpha]."""
+SUCCESS_TIME = 2.0
+"""An episode succeeds if its Qube is at the task's goal throughout its final 2 s (`QubeTask.succeeded`)."""
 
 
-ACTION_SHAPE = (1,)
-"""Shape of an action: one motor voltage (V)."""
+def success_steps(control_frequency: float) -> int:
+    """Control steps in SUCCESS_TIME at `control_frequency` (Hz); at least 1."""
+    return max(1, round(SUCCESS_TIME * control_frequency))
 
 
 def voltage_from_action(action: Any, limit: float, worlds: int | None = None, allow_number: bool = True):
@@ -106,6 +105,9 @@ class QubeTask(base.Task):
             with `worlds`, an integer seed s (world i is seeded s + i) or None.
         worlds: None for one Qube, or the number of Qubes in a batch.
     """
+
+    follows_target = False
+    """Whether the arm follows a target that the observation includes."""
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -187,6 +189,20 @@ class QubeTask(base.Task):
         else None."""
         return None if self.in_safe_set(physics) else 0.0
 
+    # -- success (scored by qube_suite.evaluation) ----------------------------------
+
+    def at_goal(self, physics):
+        """Whether the Qube is at the task's goal (bool, or one per world), as success counts it.
+
+        True by default: a task without a goal set succeeds by not terminating."""
+        return True
+
+    def succeeded(self, at_goal: Sequence[bool], terminated: bool, control_frequency: float) -> bool:
+        """Whether a finished episode succeeded: it did not terminate, and `at_goal` (one per step of
+        the episode) held throughout its final `SUCCESS_TIME` at `control_frequency` (Hz)."""
+        settled = success_steps(control_frequency)
+        return not terminated and len(at_goal) >= settled and bool(np.all(at_goal[-settled:]))
+
     # -- specs and observations ---------------------------------------------------
 
     def action_spec(self, physics) -> specs.BoundedArray:
@@ -195,6 +211,12 @@ class QubeTask(base.Task):
 
     def observation_spec(self, physics) -> collections.OrderedDict:
         return collections.OrderedDict(state=specs.Array((6 if self._trig else 4,), np.float64, name="state"))
+
+    @property
+    def observation_layout(self) -> ObservationLayout:
+        """Where the observation keeps the state and the target: what controllers and policies read
+        it with."""
+        return ObservationLayout("trig" if self._trig else "state", self.follows_target)
 
     def observation_values(self, physics) -> list:
         """The observation as one flat list (of floats, or of arrays over worlds), in the order of

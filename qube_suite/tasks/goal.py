@@ -7,6 +7,7 @@ import collections
 import numpy as np
 from dm_env import specs
 
+from qube_suite.conventions import GOAL_PENDULUM_TOLERANCE
 from qube_suite.tasks import rewards
 from qube_suite.tasks.base import QubeTask
 from qube_suite.tasks.follow import TARGET_LIMIT, make_schedule
@@ -27,8 +28,6 @@ class GoalTask(QubeTask):
             the other tasks take none of them.
         **kwargs: see `QubeTask`.
     """
-
-    follows_target = False
 
     def __init__(self, sparse: bool = False, target="jump", target_amplitude: float | None = None,
                  target_hold_time: float | None = None, target_frequency: float | None = None,
@@ -69,6 +68,10 @@ class GoalTask(QubeTask):
         if self._sparse:
             return rewards.goal_reward(pendulum_error, arm_error)
         return rewards.angle_reward(pendulum_error, arm_error)
+
+    def at_goal(self, physics):
+        """Whether the pendulum is within 10 degrees of its goal (the arm may be anywhere)."""
+        return abs(self.pendulum_error(physics)) <= GOAL_PENDULUM_TOLERANCE
 
     def initialize_episode(self, physics, world=None) -> None:
         super().initialize_episode(physics, world)

@@ -8,15 +8,11 @@ from __future__ import annotations
 
 import math
 
+from qube_suite.conventions import GOAL_ARM_TOLERANCE, GOAL_PENDULUM_TOLERANCE
 from qube_suite.tasks.elementwise import maximum
 
 PENDULUM_WEIGHT = 0.8
 ARM_WEIGHT = 0.2
-
-GOAL_PENDULUM_TOLERANCE = math.radians(10.0)
-"""Sparse goal set: pendulum within 10 degrees of its goal angle ..."""
-GOAL_ARM_TOLERANCE = math.radians(20.0)
-"""... and arm within 20 degrees of its goal angle."""
 
 
 def angle_reward(pendulum_error, arm_error):

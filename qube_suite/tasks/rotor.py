@@ -11,6 +11,9 @@ from qube_suite.tasks.base import QubeTask
 from qube_suite.tasks.elementwise import maximum
 from qube_suite.tasks.registry import register
 
+SUCCESS_REVOLUTIONS = 5
+"""An episode succeeds with at least 5 net revolutions."""
+
 START_NOISE = 0.01
 """Start: hanging at rest, each state variable uniform within +-0.01 (rad, rad/s)."""
 
@@ -56,6 +59,11 @@ class Rotor(QubeTask):
 
     def initial_state(self, random: np.random.RandomState) -> np.ndarray:
         return random.uniform(-START_NOISE, START_NOISE, 4) + np.array([0.0, math.pi, 0.0, 0.0])
+
+    def succeeded(self, at_goal, terminated: bool, control_frequency: float) -> bool:
+        """Whether the finished episode made at least `SUCCESS_REVOLUTIONS` net revolutions (ended by the
+        arm's limit or not)."""
+        return self.revolutions >= SUCCESS_REVOLUTIONS
 
     def initialize_episode(self, physics, world=None) -> None:
         super().initialize_episode(physics, world)

@@ -10,9 +10,10 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
+from qube_suite.conventions import ACTION_SHAPE
 from qube_suite.environment import Environment
 from qube_suite.media import DEFAULT_CAMERA, FrameRenderer
-from qube_suite.tasks.base import ACTION_SHAPE, voltage_from_action
+from qube_suite.tasks.base import voltage_from_action
 
 RENDER_MODES = ("human", "rgb_array")
 
