@@ -14,17 +14,18 @@ import math
 
 from qube_suite.arguments import check_keywords, is_number, keywords_of
 from qube_suite.baselines.base import Controller
-from qube_suite.baselines.dampen import Dampen
-from qube_suite.baselines.follow import Follow
+from qube_suite.baselines.dampen import DampenController
+from qube_suite.baselines.follow import FollowController
 from qube_suite.baselines.ilqr import IterativeLQR
 from qube_suite.baselines.lqr import BalanceLQR, lqr_gain
 from qube_suite.baselines.mpc import SamplingMPC
-from qube_suite.baselines.rotor import Rotor
-from qube_suite.baselines.swingup import SwingUp
+from qube_suite.baselines.rotor import RotorController
+from qube_suite.baselines.swingup import SwingupController
 from qube_suite.domains.qube import check_control_frequency
 
 CONTROLLERS: dict[str, type[Controller]] = {
-    cls.name: cls for cls in (BalanceLQR, SwingUp, Dampen, Follow, Rotor, SamplingMPC, IterativeLQR)}
+    cls.name: cls for cls in (BalanceLQR, SwingupController, DampenController, FollowController,
+                              RotorController, SamplingMPC, IterativeLQR)}
 """Controller name -> class."""
 
 
@@ -63,5 +64,5 @@ def for_environment(name: str, environment, **kwargs) -> Controller:
     return controller
 
 
-__all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "Dampen", "Follow", "IterativeLQR", "Rotor",
-           "SamplingMPC", "SwingUp", "for_environment", "lqr_gain", "make"]
+__all__ = ["CONTROLLERS", "BalanceLQR", "Controller", "DampenController", "FollowController", "IterativeLQR",
+           "RotorController", "SamplingMPC", "SwingupController", "for_environment", "lqr_gain", "make"]

@@ -37,7 +37,7 @@ RESTING_UPRIGHT = (0.1, 0.2)
 """... found within this angle of upright (rad) and below this speed (rad/s)."""
 
 
-class Dampen(Controller):
+class DampenController(Controller):
     """Brings the pendulum to rest hanging with the arm centred, from any state.
 
     Args: as `Controller`.

@@ -25,7 +25,7 @@ The set-point is the target seen through two limits:
   overshoots its set-point while it catches the pendulum's lean, and Coulomb
   friction or the cable's spring make the LQR hunt around it.
 
-Before the pendulum is caught, `SwingUp` swings it up around the arm's centre;
+Before the pendulum is caught, `SwingupController` swings it up around the arm's centre;
 the catch is judged against the limited set-point, so a far target does not
 keep the LQR from taking over.
 """
@@ -39,7 +39,7 @@ import numpy as np
 
 from qube_suite.baselines.base import Controller
 from qube_suite.baselines.lqr import lqr_design
-from qube_suite.baselines.swingup import SwingUp
+from qube_suite.baselines.swingup import SwingupController
 from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
 
 REFERENCE_STEP = math.radians(20.0)
@@ -72,7 +72,7 @@ class TargetSpeed:
         self._last = target
         return speed
 
-class Follow(Controller):
+class FollowController(Controller):
     """Balances (swinging up first if needed) with the arm following the observed target.
 
     Args: as `Controller`.
@@ -85,7 +85,7 @@ class Follow(Controller):
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
                  parameters: Mapping[str, float] | None = None, latency_steps: int = 0):
         super().__init__(control_frequency, voltage_limit, parameters, latency_steps)
-        self.swingup = SwingUp(control_frequency, voltage_limit, parameters)
+        self.swingup = SwingupController(control_frequency, voltage_limit, parameters)
         self.gain = lqr_design(control_frequency, parameters, TRACKING_WEIGHTS)[0][0]
         self.target_speed = TargetSpeed(control_frequency)
         self.reset()

@@ -82,7 +82,7 @@ class IterativeLQR(Controller):
     does `iterations` iLQR iterations from the observer's estimate (predicted
     over the latency) and sends the plan's first voltage. The arm reference is the
     target within +-60 degrees, extrapolated over the horizon with the target's
-    speed (estimated as in `Follow`).
+    speed (estimated as in `FollowController`).
 
     Args:
         control_frequency, voltage_limit, parameters, latency_steps: as `Controller`.

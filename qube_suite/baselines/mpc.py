@@ -56,7 +56,7 @@ class SamplingMPC(Controller):
         + 100 if |theta| > 80 degrees
 
     The balance LQR (`BalanceLQR`) takes over inside the same cost-to-go
-    ellipsoid as in `SwingUp`, with the arm set-point of `Follow`.
+    ellipsoid as in `SwingupController`, with the arm set-point of `FollowController`.
 
     Args:
         control_frequency: control steps per second (Hz).

@@ -23,7 +23,7 @@ ROTOR_ENERGY = 0.5
 """Set energy above upright at rest, as a fraction of 2 mp g l."""
 
 
-class Rotor(Controller):
+class RotorController(Controller):
     """Keeps the pendulum revolving, arm within +-90 degrees.
 
     Args: as `Controller` (the law itself is continuous-time).

@@ -47,7 +47,7 @@ ENERGY_MARGIN_LIMIT = 0.3
 """The adapted set energy stays within [0, 0.3] 2 mp g l above upright."""
 
 
-class SwingUp(Controller):
+class SwingupController(Controller):
     """Swings the pendulum up from any state and balances it, arm within +-90 degrees.
 
     Args: as `Controller`.
