@@ -20,7 +20,7 @@ from dm_control.suite import base
 from dm_env import specs
 
 from qube_suite.arguments import check_seed, is_number
-from qube_suite.conventions import (  # noqa: F401  (ARM_LIMIT and the voltage limits also as tasks.base's)
+from qube_suite.conventions import (
     ACTION_SHAPE,
     ARM_LIMIT,
     DEFAULT_VOLTAGE_LIMIT,
