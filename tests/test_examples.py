@@ -50,3 +50,30 @@ def test_custom_task_is_batch_safe():
     from qube_suite.tasks import check_batch_safety
 
     check_batch_safety(load("custom_task").ArmToAngle)
+
+
+def test_custom_task_runs_in_the_vector_env_like_single_envs(monkeypatch):
+    import math
+
+    import numpy as np
+
+    from qube_suite import to_gymnasium
+    from qube_suite.domains import qube
+    from qube_suite.environment import Environment
+    from qube_suite.tasks import SUITE
+    from qube_suite.wrappers import QubeVectorEnv
+
+    example = load("custom_task")
+    monkeypatch.setitem(SUITE._tasks, "arm_to_angle", example.ArmToAngle)
+    vector = QubeVectorEnv("arm_to_angle", 2)
+    singles = [to_gymnasium(Environment(qube.make_physics(), example.ArmToAngle())) for _ in range(2)]
+    observations, _ = vector.reset(seed=5)
+    for world, env in enumerate(singles):
+        np.testing.assert_array_equal(observations[world], env.reset(seed=5 + world)[0])
+    for volts in np.linspace(-2.0, 2.0, 30):
+        observations, rewards, *_ = vector.step(np.full((2, 1), volts, np.float32))
+        for world, env in enumerate(singles):
+            observation, reward, *_ = env.step(np.array([volts], np.float32))
+            np.testing.assert_array_equal(observations[world], observation)
+            assert math.isclose(rewards[world], reward, rel_tol=1e-12)
+    assert rewards.max() > 0.0
