@@ -350,6 +350,7 @@ def _add_run(commands) -> None:
 
 def _demo(args: argparse.Namespace) -> int:
     from qube_suite import baselines, episodes, extras, suite
+    from qube_suite.conventions import GOAL_PENDULUM_TOLERANCE
 
     plot_path = args.plot
     if plot_path is None and extras.available("matplotlib"):
@@ -367,7 +368,7 @@ def _demo(args: argparse.Namespace) -> int:
     controller.close()
     print(f"return {trace.episode_return:.1f} of {environment.episode_steps} "
           f"({trace.steps} steps, {time.perf_counter() - start:.1f} s wall time)")
-    upright = trace.time[abs(trace.state[:, 1]) < math.radians(10)]
+    upright = trace.time[abs(trace.state[:, 1]) <= GOAL_PENDULUM_TOLERANCE]
     if len(upright):
         print(f"upright after {upright[0]:.2f} s; "
               f"largest arm angle {math.degrees(max(abs(trace.state[:, 0]))):.0f} deg")
