@@ -2,6 +2,7 @@
 
     python benchmarks/revision_step_speed.py 4ddcb67            # that commit against this tree
     python benchmarks/revision_step_speed.py 4ddcb67 HEAD --env QubeSuite/Balance-v0
+    python benchmarks/revision_step_speed.py main --randomization sim2real   # a randomized step
 
 Each version is exported (`git archive`; the working tree for "."), and rounds of
 timed steps alternate between them, each in a fresh subprocess, so that load from
@@ -27,7 +28,7 @@ TIMER = """
 import sys, time
 import gymnasium, numpy as np
 import qube_suite
-env = gymnasium.make(sys.argv[1])
+env = gymnasium.make(sys.argv[1], **({"randomization": sys.argv[3]} if len(sys.argv) > 3 else {}))
 steps = int(sys.argv[2])
 action = np.zeros(1, np.float32)
 env.reset(seed=0)
@@ -57,9 +58,12 @@ def export(revision: str, folder: pathlib.Path) -> pathlib.Path:
     return target
 
 
-def seconds_per_step(source: pathlib.Path, env_id: str, steps: int) -> float:
-    """Best of five timed runs of `steps` steps with the package at `source`, in a new process."""
-    result = subprocess.run([sys.executable, "-c", TIMER, env_id, str(steps)], check=True,
+def seconds_per_step(source: pathlib.Path, env_id: str, steps: int,
+                     randomization: str | None = None) -> float:
+    """Best of five timed runs of `steps` steps with the package at `source`, in a new process;
+    `randomization`: a preset name, or None for none."""
+    extra = [] if randomization is None else [randomization]
+    result = subprocess.run([sys.executable, "-c", TIMER, env_id, str(steps), *extra], check=True,
                             capture_output=True, text=True, cwd=source,
                             env={"PYTHONPATH": str(source), "MUJOCO_GL": "disable"})
     return float(result.stdout.split()[-1])
@@ -73,13 +77,14 @@ def main() -> int:
     parser.add_argument("--env", default="QubeSuite/Swingup-v0", help="Gymnasium id")
     parser.add_argument("--rounds", type=int, default=7, help="alternating rounds (default: 7)")
     parser.add_argument("--steps", type=int, default=2000, help="steps per timed run (episode length)")
+    parser.add_argument("--randomization", help="a preset to randomize the timed steps with (default: none)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         sources = {name: export(name, pathlib.Path(folder)) for name in (args.before, args.after)}
         times: dict[str, list[float]] = {name: [] for name in sources}
         for _ in range(args.rounds):
             for name, source in sources.items():
-                times[name].append(seconds_per_step(source, args.env, args.steps))
+                times[name].append(seconds_per_step(source, args.env, args.steps, args.randomization))
     for name, values in times.items():
         print(f"{name:>12}: best {min(values) * 1e6:6.2f} us/step (CPU), "
               f"median {statistics.median(values) * 1e6:6.2f}")

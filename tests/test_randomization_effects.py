@@ -8,12 +8,12 @@ import pytest
 from qube_suite import randomization, suite
 from qube_suite.randomization import (
     ActionDelay,
-    BatchChain,
     Chain,
     ControlJitter,
     DeadZone,
     ObservationDelay,
     ObservationNoise,
+    OneRow,
     Quantization,
     Saturation,
     Streams,
@@ -22,6 +22,11 @@ from qube_suite.randomization import (
 )
 
 PERIOD = 0.004
+
+
+def one_qube(effects):
+    """A chain for one Qube, as a one-Qube domain gets it: a batch of one, floats in and out."""
+    return OneRow(Chain(effects))
 
 
 def run(effects, voltages, task="swingup", seed=0, frequency=250.0):
@@ -191,7 +196,8 @@ def test_all_effects_keep_observations_finite_and_bad_actions_change_nothing():
 
 
 def test_effects_on_arrays_for_n_environments_match_one_at_a_time():
-    """The array path (n Qubes, per-environment settings) gives the numbers of the one-Qube float path."""
+    """n Qubes at once, with per-environment settings, give the numbers of each Qube alone (a batch of one
+    with its own settings, fed floats)."""
     rng = np.random.default_rng(0)
     states = rng.uniform(-4, 4, (60, 3, 4))
     volts = rng.uniform(-4, 4, (60, 3))
@@ -209,9 +215,9 @@ def test_effects_on_arrays_for_n_environments_match_one_at_a_time():
                 chain([ControlJitter(pick(cutoffs) / 250, jitter_rng)]))
 
     for i in range(3):
-        # With one noise stream per environment, the batch of one is compared with the float path.
-        batch = chains(lambda a, i=i: a[[i]], BatchChain, i)
-        single = chains(lambda a, i=i: a[i], Chain, i)
+        # With one noise stream per environment, a batch of one row is compared with one Qube alone.
+        batch = chains(lambda a, i=i: a[[i]], Chain, i)
+        single = chains(lambda a, i=i: a[i], one_qube, i)
         for chain_batch, chain_single, signal in zip(batch, single, (states, volts, durations), strict=True):
             outputs_batch = [chain_batch.reset(signal[0, [i]])] + [chain_batch(x[[i]]) for x in signal[1:]]
             outputs_single = [chain_single.reset(signal[0, i].tolist())] + [chain_single(x[i].tolist())
@@ -219,11 +225,11 @@ def test_effects_on_arrays_for_n_environments_match_one_at_a_time():
             np.testing.assert_array_equal(np.array(outputs_batch)[:, 0], np.array(outputs_single))
 
     # Three at once with per-environment settings: noiseless, so the streams do not matter.
-    sensor = BatchChain([Quantization(counts), VelocityFilter(cutoffs, PERIOD), ObservationDelay(delays)])
+    sensor = Chain([Quantization(counts), VelocityFilter(cutoffs, PERIOD), ObservationDelay(delays)])
     outputs = [sensor.reset(states[0])] + [sensor(x) for x in states[1:]]
     for i in range(3):
-        single = Chain([Quantization(counts[i]), VelocityFilter(cutoffs[i], PERIOD),
-                        ObservationDelay(delays[i])])
+        single = one_qube([Quantization(counts[i]), VelocityFilter(cutoffs[i], PERIOD),
+                           ObservationDelay(delays[i])])
         expected = [single.reset(states[0, i].tolist())] + [single(x[i].tolist()) for x in states[1:]]
         np.testing.assert_array_equal(np.array(outputs)[:, i], np.array(expected))
 
@@ -256,8 +262,8 @@ def test_n_environments_with_own_generators_and_redrawn_settings_match_one_at_a_
         return {key: np.array([d[key] for d in dicts]) for key in dicts[0]}
 
     generators = [np.random.RandomState(seed) for seed in seeds[:3]]
-    batch = chains_for(stacked(episodes[:3]), BatchChain, Streams(generators))
-    singles = [chains_for(episodes[i], Chain, np.random.RandomState(seeds[i])) for i in range(3)]
+    batch = chains_for(stacked(episodes[:3]), Chain, Streams(generators))
+    singles = [chains_for(episodes[i], one_qube, np.random.RandomState(seeds[i])) for i in range(3)]
     got, expected = [], [[], [], []]
     for step in range(80):
         x = (states[step], volts[step], np.full(3, PERIOD))
@@ -268,13 +274,13 @@ def test_n_environments_with_own_generators_and_redrawn_settings_match_one_at_a_
             got.append([batch[0](x[0]), batch[1](x[1]), durations])
         if step == restart:  # after the step, environment 1 starts a new episode with the fourth settings
             rows = np.array([1])
-            for chain, fresh in zip(batch, chains_for(stacked(episodes[3:]), BatchChain, None), strict=True):
+            for chain, fresh in zip(batch, chains_for(stacked(episodes[3:]), Chain, None), strict=True):
                 for effect, new in zip(chain.effects, fresh.effects, strict=True):
                     effect.set_rows(rows, new)
             generators[1].seed(seeds[3])
             for outputs, chain, signal in zip(got[-1], batch[:2], x, strict=False):  # timing has no memory
                 outputs[1] = chain.reset(signal[rows], rows)[0]
-            singles[1] = chains_for(episodes[3], Chain, np.random.RandomState(seeds[3]))
+            singles[1] = chains_for(episodes[3], one_qube, np.random.RandomState(seeds[3]))
         for i, (sensor, actuator, timing) in enumerate(singles):
             if step == 0 or (step == restart and i == 1):
                 expected[i].append([sensor.reset(x[0][i].tolist()), actuator.reset(float(x[1][i]))])

@@ -10,7 +10,7 @@ one model until their parameters are changed, which keeps nominal batches in cac
 
 Like the single `qube.Physics`, a batch takes a sensor, an actuator and a
 step-duration model (`set_sensor_model`, ...): here effects on arrays with one row
-per world (`qube_suite.randomization.BatchChain`), restarted for just the worlds
+per world (`qube_suite.randomization.Chain`), restarted for just the worlds
 that start an episode. With a step-duration model each world's step is split
 into its own number of equal timesteps (at most `qube.MAX_TIMESTEP`), set in its
 own model, and the worlds taking the same number advance in one rollout call.

@@ -27,11 +27,6 @@ class Quantization(Effect):
 
     def __init__(self, counts_per_revolution: int | np.ndarray = ENCODER_COUNTS_PER_REVOLUTION):
         self.resolution = TAU / np.asarray(counts_per_revolution, dtype=np.float64)
-        self._resolution = float(self.resolution) if self.resolution.ndim == 0 else None
-
-    def output_one(self, x):
-        q = self._resolution
-        return [wrap_angle(q * round(x[0] / q)), wrap_angle(q * round(x[1] / q)), x[2], x[3]]
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
         resolution = per_env(self.resolution, rows)[..., None]
@@ -68,20 +63,6 @@ class VelocityFilter(Effect):
     def __init__(self, cutoff: float | np.ndarray, control_period: float):
         self.pole = np.exp(-np.asarray(cutoff, dtype=np.float64) * control_period)
         self.gain = (1.0 - self.pole) / control_period
-        if self.pole.ndim == 0:
-            self._pole, self._gain = float(self.pole), float(self.gain)
-
-    def reset_one(self, x):
-        self._last = x
-        return x
-
-    def step_one(self, x):
-        theta, alpha, _, _ = x
-        last_theta, last_alpha, dtheta, dalpha = self._last
-        self._last = y = [theta, alpha,
-                          self._pole * dtheta + self._gain * wrap_angle(theta - last_theta),
-                          self._pole * dalpha + self._gain * wrap_angle(alpha - last_alpha)]
-        return y
 
     def reset(self, x: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         if rows is None:
@@ -119,12 +100,6 @@ class ObservationNoise(Effect):
     def __init__(self, std, rng):
         self.std = np.asarray(std, dtype=np.float64)
         self._rng = rng
-        self._std = self.std.tolist()
-
-    def output_one(self, x):
-        n0, n1, n2, n3 = self._rng.standard_normal(4).tolist()
-        s0, s1, s2, s3 = self._std
-        return [wrap_angle(x[0] + s0 * n0), wrap_angle(x[1] + s1 * n1), x[2] + s2 * n2, x[3] + s3 * n3]
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
         noise = generator_of(self._rng, rows).standard_normal(x.shape)

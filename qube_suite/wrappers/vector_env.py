@@ -117,7 +117,7 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         self._steps_per_episode = episode_steps(time_limit, control_frequency)
         config = None if randomization is None else randomization_.load(randomization)
         self._batch = QubeBatch(num_envs, control_frequency, threads)
-        self._randomizer = None if config is None else randomization_.BatchRandomizer(
+        self._randomizer = None if config is None else randomization_.Randomizer(
             config, self._batch, 1.0 / control_frequency)
         self._reset_hook = reset_hook
         self._randoms = [np.random.RandomState(None if seed is None else seed + i) for i in range(num_envs)]
@@ -238,7 +238,7 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         for world in worlds.tolist():
             random = self._randoms[world]
             if self._randomizer is not None:
-                draws[world] = self._randomizer.start_world(world, random)
+                draws[world] = self._randomizer.start_episode(random, world)
             if self._reset_hook is not None:
                 self._reset_hook(self._batch, world, random)
             self._task.start_episode(self._batch, random, world)
