@@ -21,12 +21,12 @@ from qube_suite.randomization.distributions import Distribution
 from qube_suite.randomization.presets import PRESETS
 from qube_suite.randomization.randomizer import OneQube, Randomizer
 from qube_suite.randomization.sampling import Sample, sample, sample_effects, sample_parameters
-from qube_suite.randomization.sensors import ObservationNoise, Quantization, VelocityFilter
+from qube_suite.randomization.sensors import FilteredVelocity, ObservationNoise, Quantization
 from qube_suite.randomization.timing import ControlJitter
 
 __all__ = [
     "EFFECTS", "PRESETS", "ActionDelay", "Chain", "ControlJitter", "DeadZone", "Distribution", "Effect",
-    "Field", "ObservationDelay", "ObservationNoise", "OneQube", "OneRow", "Quantization", "Randomization",
-    "Randomizer", "Sample", "Saturation", "Streams", "VelocityFilter", "VoltageOffset",
+    "Field", "FilteredVelocity", "ObservationDelay", "ObservationNoise", "OneQube", "OneRow", "Quantization",
+    "Randomization", "Randomizer", "Sample", "Saturation", "Streams", "VoltageOffset",
     "load", "parse", "sample", "sample_effects", "sample_parameters",
 ]
