@@ -260,7 +260,7 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         else:
             self._step_for(self._step_duration_model(nstep * self._options.timestep))
         exact = self._exact_state()
-        if not abs(exact[2]) + abs(exact[3]) < MAX_PLAUSIBLE_SPEED:  # also catches inf and NaN
+        if not plausible(exact[2], exact[3]):
             self._undo_step(before, exact)
             return
         self._exact = exact
@@ -324,10 +324,9 @@ class Physics(MeasuredState, dm_mujoco.Physics):
 
     def _step_for(self, duration: float) -> None:
         nominal_timestep = self._options.timestep
-        nstep = physics_steps(duration)
-        self._options.timestep = duration / nstep
+        nstep, self._options.timestep = split_step(duration)
         try:
-            mujoco.mj_step(self._model_ptr, self._data_ptr, nstep)
+            mujoco.mj_step(self._model_ptr, self._data_ptr, int(nstep))
         finally:
             self._options.timestep = nominal_timestep
 
@@ -470,12 +469,17 @@ def substeps_per_control_period(control_frequency: float) -> int:
     return max(1, math.ceil(1.0 / (control_frequency * MAX_TIMESTEP) - 1e-9))
 
 
-def physics_steps(duration: float | np.ndarray) -> int | np.ndarray:
-    """Fewest equal physics steps covering `duration` (s; or an array of durations) with timesteps of at
-    most MAX_TIMESTEP; the timestep is then `duration / physics_steps(duration)`."""
-    if isinstance(duration, np.ndarray):
-        return np.maximum(1, np.ceil(duration / MAX_TIMESTEP - 1e-9)).astype(np.intp)
-    return max(1, math.ceil(duration / MAX_TIMESTEP - 1e-9))
+def split_step(duration):
+    """A control step lasting `duration` (s; a number or an array, one per Qube) split into the fewest
+    equal physics steps of at most MAX_TIMESTEP: (their number, their timestep in s), as numpy values."""
+    nstep = np.maximum(1, np.ceil(duration / MAX_TIMESTEP - 1e-9)).astype(np.intp)
+    return nstep, duration / nstep
+
+
+def plausible(arm_velocity, pendulum_velocity):
+    """Whether a simulation with these velocities (rad/s; numbers or arrays, one per Qube) has not
+    diverged: |d theta / dt| + |d alpha / dt| below MAX_PLAUSIBLE_SPEED, False for inf and NaN."""
+    return abs(arm_velocity) + abs(pendulum_velocity) < MAX_PLAUSIBLE_SPEED
 
 
 def physics_timestep(control_frequency: float) -> float:

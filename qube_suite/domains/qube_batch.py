@@ -257,8 +257,7 @@ class QubeBatch:
     def _undo_diverged(self, after: np.ndarray, before: np.ndarray) -> None:
         """Mark in `diverged` the worlds whose states `after` a step are implausible and give them
         back their positions and velocities `before` it (their time stays advanced)."""
-        speeds = np.abs(after[:, self._dtheta]) + np.abs(after[:, self._dalpha])
-        self.diverged = ~(speeds < qube.MAX_PLAUSIBLE_SPEED)  # also catches inf and NaN
+        self.diverged = ~qube.plausible(after[:, self._dtheta], after[:, self._dalpha])
         if self.diverged.any():
             after[self.diverged, 1:] = before[self.diverged, 1:]
 
@@ -282,8 +281,8 @@ class QubeBatch:
         """Advance each world by its own duration (s) with its motor voltage (V) held: equal timesteps
         of at most MAX_TIMESTEP set in its model, as `qube.Physics` does, and one rollout call for the
         worlds taking the same number of them."""
-        nsteps = qube.physics_steps(durations)
-        for options, timestep in zip(self._options, (durations / nsteps).tolist(), strict=True):
+        nsteps, timesteps = qube.split_step(durations)
+        for options, timestep in zip(self._options, timesteps.tolist(), strict=True):
             options.timestep = timestep
         for nstep in np.unique(nsteps).tolist():
             worlds = np.flatnonzero(nsteps == nstep)
