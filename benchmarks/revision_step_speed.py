@@ -3,6 +3,7 @@
     python benchmarks/revision_step_speed.py 4ddcb67            # that commit against this tree
     python benchmarks/revision_step_speed.py 4ddcb67 HEAD --env QubeSuite/Balance-v0
     python benchmarks/revision_step_speed.py main --num-envs 1024 --steps 200   # the vector env
+    python benchmarks/revision_step_speed.py main --randomization sim2real   # a randomized step
 
 Each version is exported (`git archive`; the working tree for "."), and rounds of
 timed steps alternate between them, each in a fresh subprocess, so that load from
@@ -28,7 +29,7 @@ TIMER = """
 import sys, time
 import gymnasium, numpy as np
 import qube_suite
-env = gymnasium.make(sys.argv[1])
+env = gymnasium.make(sys.argv[1], **({"randomization": sys.argv[3]} if sys.argv[3] else {}))
 steps = int(sys.argv[2])
 action = np.zeros(1, np.float32)
 env.reset(seed=0)
@@ -49,7 +50,8 @@ VECTOR_TIMER = """
 import sys, time
 import gymnasium, numpy as np
 import qube_suite
-env = gymnasium.make_vec(sys.argv[1], num_envs=int(sys.argv[3]))
+env = gymnasium.make_vec(sys.argv[1], num_envs=int(sys.argv[4]),
+                         **({"randomization": sys.argv[3]} if sys.argv[3] else {}))
 steps = int(sys.argv[2])
 actions = np.zeros((env.num_envs, 1), np.float32)
 env.reset(seed=0)
@@ -77,11 +79,13 @@ def export(revision: str, folder: pathlib.Path) -> pathlib.Path:
     return target
 
 
-def seconds_per_step(source: pathlib.Path, env_id: str, steps: int, num_envs: int | None = None) -> float:
+def seconds_per_step(source: pathlib.Path, env_id: str, steps: int, num_envs: int | None = None,
+                     randomization: str | None = None) -> float:
     """Best of five timed runs of `steps` steps with the package at `source`, in a new process;
-    of the vector env of `num_envs` worlds if given."""
-    command = ([TIMER, env_id, str(steps)] if num_envs is None
-               else [VECTOR_TIMER, env_id, str(steps), str(num_envs)])
+    of the vector env of `num_envs` worlds if given; `randomization`: a preset name, or None."""
+    command = [TIMER if num_envs is None else VECTOR_TIMER, env_id, str(steps), randomization or ""]
+    if num_envs is not None:
+        command.append(str(num_envs))
     result = subprocess.run([sys.executable, "-c", *command], check=True,
                             capture_output=True, text=True, cwd=source,
                             env={"PYTHONPATH": str(source), "MUJOCO_GL": "disable"})
@@ -98,13 +102,14 @@ def main() -> int:
     parser.add_argument("--steps", type=int, default=2000, help="steps per timed run (episode length)")
     parser.add_argument("--num-envs", type=int, default=None,
                         help="time the vector env (gymnasium.make_vec) of this many worlds instead")
+    parser.add_argument("--randomization", help="a preset to randomize the timed steps with (default: none)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         sources = {name: export(name, pathlib.Path(folder)) for name in (args.before, args.after)}
         times: dict[str, list[float]] = {name: [] for name in sources}
         for _ in range(args.rounds):
             for name, source in sources.items():
-                times[name].append(seconds_per_step(source, args.env, args.steps, args.num_envs))
+                times[name].append(seconds_per_step(source, args.env, args.steps, args.num_envs, args.randomization))
     for name, values in times.items():
         print(f"{name:>12}: best {min(values) * 1e6:6.2f} us/step (CPU), "
               f"median {statistics.median(values) * 1e6:6.2f}")

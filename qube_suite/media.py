@@ -41,7 +41,7 @@ class FrameRenderer:
     """RGB frames of a Qube domain's physics, offscreen, from one of the model's cameras.
 
     Args:
-        camera: a camera of `qube.xml`: "front_oblique", "front" or "top".
+        camera: a camera of `scene.xml`: "front_oblique", "front" or "top".
         width, height: frame size (pixels), at most the model's offscreen buffer
             (1280 x 960).
 

@@ -9,12 +9,13 @@ from qube_suite.angles import wrap_angle
 from qube_suite.hardware import StateEstimator, VelocityFilter, conventions
 
 FREQUENCY = 250.0
+PERIOD = 1 / FREQUENCY
 WC = 50.0
 
 
 def test_ramp_response_is_the_continuous_filters_at_every_sample():
     """For a ramp (piecewise linear) the ramp-invariant filter is exact: v (1 - exp(-wc t))."""
-    speed, f = 3.0, VelocityFilter(FREQUENCY, channels=1)
+    speed, f = 3.0, VelocityFilter(PERIOD, channels=1)
     times = np.arange(200) / FREQUENCY
     estimates = [f([speed * t])[0] for t in times]
     np.testing.assert_allclose(estimates, speed * (1 - np.exp(-WC * times)), rtol=1e-12, atol=1e-12)
@@ -23,7 +24,7 @@ def test_ramp_response_is_the_continuous_filters_at_every_sample():
 
 def test_ramp_lags_by_one_over_the_cutoff():
     """The estimate of a ramp trails by the area (v - estimate) dt / v = 1 / wc = 20 ms."""
-    speed, f = 2.0, VelocityFilter(FREQUENCY, channels=1)
+    speed, f = 2.0, VelocityFilter(PERIOD, channels=1)
     times = np.arange(500) / FREQUENCY
     deficit = speed - np.array([f([speed * t])[0] for t in times])
     lag = np.trapezoid(deficit, times) / speed                          # the trapezoid rule adds 0.3 %
@@ -33,7 +34,7 @@ def test_ramp_lags_by_one_over_the_cutoff():
 @pytest.mark.parametrize("hertz", [0.5, 1.7, 5.0, 20.0])
 def test_sine_response_matches_the_analytic_one(hertz):
     """Steady state on a sine: gain 1 / sqrt(1 + (w/wc)^2), phase lag atan(w/wc) of the true velocity."""
-    omega, f = 2 * math.pi * hertz, VelocityFilter(FREQUENCY, channels=1)
+    omega, f = 2 * math.pi * hertz, VelocityFilter(PERIOD, channels=1)
     times = np.arange(int(FREQUENCY * (4 + 4 / hertz))) / FREQUENCY
     estimates = np.array([f([math.sin(omega * t)])[0] for t in times])
     keep = times > 3.0                                                  # transient (20 ms) long gone
@@ -49,7 +50,7 @@ def test_sine_response_matches_the_analytic_one(hertz):
 
 def test_slow_sine_is_delayed_by_the_lag():
     omega = 2 * math.pi * 0.5
-    delay = -np.angle(VelocityFilter(FREQUENCY).frequency_response(omega)) / omega
+    delay = -np.angle(VelocityFilter(PERIOD).frequency_response(omega)) / omega
     assert delay == pytest.approx(1 / WC, rel=5e-3)
 
 
@@ -71,4 +72,4 @@ def test_filter_checks_its_arguments():
     with pytest.raises(ValueError):
         VelocityFilter(0.0)
     with pytest.raises(ValueError):
-        VelocityFilter(FREQUENCY)([1.0, 2.0, 3.0])
+        VelocityFilter(PERIOD)([1.0, 2.0, 3.0])

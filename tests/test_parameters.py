@@ -15,7 +15,7 @@ MODEL_FIELDS = ("body_mass", "body_inertia", "body_pos", "body_ipos", "dof_dampi
 
 
 def test_xml_carries_the_nominal_table():
-    as_written = mujoco.MjModel.from_xml_path(str(qube.MODEL_PATH))
+    as_written = mujoco.MjModel.from_xml_path(str(qube.SCENE_PATH))  # includes qube.xml
     physics = qube.make_physics()
     physics.set_parameters({})
     for field in MODEL_FIELDS:

@@ -8,20 +8,25 @@ import pytest
 from qube_suite import randomization, suite
 from qube_suite.randomization import (
     ActionDelay,
-    BatchChain,
     Chain,
     ControlJitter,
     DeadZone,
+    FilteredVelocity,
     ObservationDelay,
     ObservationNoise,
+    OneRow,
     Quantization,
     Saturation,
     Streams,
-    VelocityFilter,
     VoltageOffset,
 )
 
 PERIOD = 0.004
+
+
+def one_qube(effects):
+    """A chain for one Qube, as a one-Qube domain gets it: a batch of one, floats in and out."""
+    return OneRow(Chain(effects))
 
 
 def run(effects, voltages, task="swingup", seed=0, frequency=250.0):
@@ -123,7 +128,7 @@ def test_velocity_filter_lags_like_the_continuous_filter():
     angles = np.stack([speed * t, np.zeros_like(t)], axis=1)
     states = np.concatenate([angles, np.zeros_like(angles)], axis=1)  # exact velocity 0 at the start
     states[1:, 2] = speed
-    velocity_filter = VelocityFilter(50.0, PERIOD)
+    velocity_filter = FilteredVelocity(50.0, PERIOD)
     estimates = [velocity_filter.reset(states[0])[2]] + [velocity_filter(x)[2] for x in states[1:]]
     analytic = speed * (1.0 - np.exp(-50.0 * t))
     np.testing.assert_allclose(estimates, analytic, rtol=1e-9, atol=1e-12)
@@ -135,7 +140,7 @@ def test_velocity_filter_matches_the_filter_frequency_response():
     t = np.arange(2000) * PERIOD
     angle = 0.5 * np.sin(frequency * t)
     states = np.stack([angle, angle, np.zeros_like(t), np.zeros_like(t)], axis=1)
-    velocity_filter = VelocityFilter(50.0, PERIOD)
+    velocity_filter = FilteredVelocity(50.0, PERIOD)
     velocity_filter.reset(states[0])
     estimates = np.array([velocity_filter(x)[2] for x in states[1:]])[1000:]
     response = 50.0 * 1j * frequency / (1j * frequency + 50.0)
@@ -191,7 +196,8 @@ def test_all_effects_keep_observations_finite_and_bad_actions_change_nothing():
 
 
 def test_effects_on_arrays_for_n_environments_match_one_at_a_time():
-    """The array path (n Qubes, per-environment settings) gives the numbers of the one-Qube float path."""
+    """n Qubes at once, with per-environment settings, give the numbers of each Qube alone (a batch of one
+    with its own settings, fed floats)."""
     rng = np.random.default_rng(0)
     states = rng.uniform(-4, 4, (60, 3, 4))
     volts = rng.uniform(-4, 4, (60, 3))
@@ -202,16 +208,16 @@ def test_effects_on_arrays_for_n_environments_match_one_at_a_time():
     def chains(pick, chain, seed):
         """Sensor, actuator and timing chains; `pick` selects settings, `seed` the noise generator."""
         noise_rng, jitter_rng = np.random.RandomState(seed), np.random.RandomState(seed + 100)
-        return (chain([Quantization(pick(counts)), VelocityFilter(pick(cutoffs), PERIOD),
+        return (chain([Quantization(pick(counts)), FilteredVelocity(pick(cutoffs), PERIOD),
                        ObservationNoise(pick(stds), noise_rng), ObservationDelay(pick(delays))]),
                 chain([ActionDelay(pick(delays)), VoltageOffset(pick(cutoffs) / 100),
                        DeadZone(pick(cutoffs) / 40), Saturation(pick(cutoffs) / 30)]),
                 chain([ControlJitter(pick(cutoffs) / 250, jitter_rng)]))
 
     for i in range(3):
-        # With one noise stream per environment, the batch of one is compared with the float path.
-        batch = chains(lambda a, i=i: a[[i]], BatchChain, i)
-        single = chains(lambda a, i=i: a[i], Chain, i)
+        # With one noise stream per environment, a batch of one row is compared with one Qube alone.
+        batch = chains(lambda a, i=i: a[[i]], Chain, i)
+        single = chains(lambda a, i=i: a[i], one_qube, i)
         for chain_batch, chain_single, signal in zip(batch, single, (states, volts, durations), strict=True):
             outputs_batch = [chain_batch.reset(signal[0, [i]])] + [chain_batch(x[[i]]) for x in signal[1:]]
             outputs_single = [chain_single.reset(signal[0, i].tolist())] + [chain_single(x[i].tolist())
@@ -219,11 +225,11 @@ def test_effects_on_arrays_for_n_environments_match_one_at_a_time():
             np.testing.assert_array_equal(np.array(outputs_batch)[:, 0], np.array(outputs_single))
 
     # Three at once with per-environment settings: noiseless, so the streams do not matter.
-    sensor = BatchChain([Quantization(counts), VelocityFilter(cutoffs, PERIOD), ObservationDelay(delays)])
+    sensor = Chain([Quantization(counts), FilteredVelocity(cutoffs, PERIOD), ObservationDelay(delays)])
     outputs = [sensor.reset(states[0])] + [sensor(x) for x in states[1:]]
     for i in range(3):
-        single = Chain([Quantization(counts[i]), VelocityFilter(cutoffs[i], PERIOD),
-                        ObservationDelay(delays[i])])
+        single = one_qube([Quantization(counts[i]), FilteredVelocity(cutoffs[i], PERIOD),
+                           ObservationDelay(delays[i])])
         expected = [single.reset(states[0, i].tolist())] + [single(x[i].tolist()) for x in states[1:]]
         np.testing.assert_array_equal(np.array(outputs)[:, i], np.array(expected))
 
@@ -231,7 +237,7 @@ def test_effects_on_arrays_for_n_environments_match_one_at_a_time():
 def chains_for(settings, chain, rng):
     """Sensor, actuator and timing chains for settings (one value, or an array over environments);
     noise and jitter share `rng`, as in an environment."""
-    return (chain([Quantization(settings["counts"]), VelocityFilter(settings["cutoff"], PERIOD),
+    return (chain([Quantization(settings["counts"]), FilteredVelocity(settings["cutoff"], PERIOD),
                    ObservationNoise(settings["std"], rng), ObservationDelay(settings["delay"])]),
             chain([ActionDelay(settings["delay"]), VoltageOffset(settings["offset"]),
                    DeadZone(settings["offset"] / 2), Saturation(settings["offset"] + 1.0)]),
@@ -256,8 +262,8 @@ def test_n_environments_with_own_generators_and_redrawn_settings_match_one_at_a_
         return {key: np.array([d[key] for d in dicts]) for key in dicts[0]}
 
     generators = [np.random.RandomState(seed) for seed in seeds[:3]]
-    batch = chains_for(stacked(episodes[:3]), BatchChain, Streams(generators))
-    singles = [chains_for(episodes[i], Chain, np.random.RandomState(seeds[i])) for i in range(3)]
+    batch = chains_for(stacked(episodes[:3]), Chain, Streams(generators))
+    singles = [chains_for(episodes[i], one_qube, np.random.RandomState(seeds[i])) for i in range(3)]
     got, expected = [], [[], [], []]
     for step in range(80):
         x = (states[step], volts[step], np.full(3, PERIOD))
@@ -268,13 +274,13 @@ def test_n_environments_with_own_generators_and_redrawn_settings_match_one_at_a_
             got.append([batch[0](x[0]), batch[1](x[1]), durations])
         if step == restart:  # after the step, environment 1 starts a new episode with the fourth settings
             rows = np.array([1])
-            for chain, fresh in zip(batch, chains_for(stacked(episodes[3:]), BatchChain, None), strict=True):
+            for chain, fresh in zip(batch, chains_for(stacked(episodes[3:]), Chain, None), strict=True):
                 for effect, new in zip(chain.effects, fresh.effects, strict=True):
                     effect.set_rows(rows, new)
             generators[1].seed(seeds[3])
             for outputs, chain, signal in zip(got[-1], batch[:2], x, strict=False):  # timing has no memory
                 outputs[1] = chain.reset(signal[rows], rows)[0]
-            singles[1] = chains_for(episodes[3], Chain, np.random.RandomState(seeds[3]))
+            singles[1] = chains_for(episodes[3], one_qube, np.random.RandomState(seeds[3]))
         for i, (sensor, actuator, timing) in enumerate(singles):
             if step == 0 or (step == restart and i == 1):
                 expected[i].append([sensor.reset(x[0][i].tolist()), actuator.reset(float(x[1][i]))])
@@ -311,7 +317,7 @@ def test_resetting_some_of_n_environments_keeps_the_others():
 def test_effects_do_not_modify_their_input():
     rng = np.random.default_rng(2)
     x = rng.uniform(-3, 3, 4)
-    for effect in (Quantization(64), VelocityFilter(50.0, PERIOD), ObservationNoise([0.1] * 4, rng),
+    for effect in (Quantization(64), FilteredVelocity(50.0, PERIOD), ObservationNoise([0.1] * 4, rng),
                    ObservationDelay(2)):
         kept = x.copy()
         effect.reset(x)
@@ -327,3 +333,16 @@ def test_every_effect_is_in_the_catalog_with_documented_fields():
     for cls in randomization.EFFECTS.values():
         assert cls.signal in ("state", "voltage", "duration") and cls.__doc__
         assert all(field.unit and field.description for field in cls.fields.values())
+
+
+def test_the_velocity_filter_effect_and_the_hardware_estimator_are_one_filter():
+    """The effect, started at rest, gives the velocities the hardware's filter gives for the same angles."""
+    from qube_suite.hardware import VelocityFilter
+
+    angles = np.cumsum(np.random.default_rng(4).uniform(-0.05, 0.05, (100, 2)), axis=0)
+    states = np.concatenate([angles, np.zeros_like(angles)], axis=1)
+    effect, hardware = FilteredVelocity(30.0, PERIOD), VelocityFilter(PERIOD, cutoff=30.0)
+    effect.reset(states[0])
+    hardware(angles[0])
+    for state, angle in zip(states[1:], angles[1:], strict=True):
+        np.testing.assert_array_equal(effect(state)[2:], hardware(angle))

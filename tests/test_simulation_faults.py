@@ -105,3 +105,20 @@ def test_vector_env_flags_the_diverged_world_and_the_others_go_on(mode, randomiz
         after, _, _, _, info = vector.step(action)
         assert "physics_error" not in info and np.isfinite(after).all()
         np.testing.assert_array_equal(after[2], single.step(action[2])[0])
+
+
+def test_divergence_and_step_splitting_rules_give_one_answer_for_numbers_and_arrays():
+    """One Qube and a batch share the rules: a number and an array entry get the same answer."""
+    from qube_suite.domains.qube import MAX_TIMESTEP, plausible, split_step
+
+    speeds = np.array([0.0, MAX_PLAUSIBLE_SPEED * 0.99, MAX_PLAUSIBLE_SPEED, np.inf, -np.inf, np.nan])
+    together = plausible(speeds, -speeds)
+    assert together.tolist() == [True, False, False, False, False, False]
+    assert [bool(plausible(s, 0.0)) for s in speeds.tolist()] == [True, True, False, False, False, False]
+    durations = np.array([0.5, 1.0, 1.0 + 1e-12, 1.5, 2.0, 2.5]) * MAX_TIMESTEP
+    nsteps, timesteps = split_step(durations)
+    assert nsteps.tolist() == [1, 1, 1, 2, 2, 3]
+    assert (timesteps <= MAX_TIMESTEP * (1 + 1e-9)).all()  # a rounding error's excess takes no extra step
+    np.testing.assert_allclose(nsteps * timesteps, durations, rtol=1e-15)
+    for duration, nstep, timestep in zip(durations.tolist(), nsteps, timesteps, strict=True):
+        assert split_step(duration) == (nstep, timestep)

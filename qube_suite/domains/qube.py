@@ -1,4 +1,5 @@
-"""The simulated Qube: MuJoCo physics of `assets/qube.xml` in the Qube's own terms.
+"""The simulated Qube: MuJoCo physics of `assets/scene.xml` (the Qube of `assets/qube.xml` on its
+bench) in the Qube's own terms.
 
 `make_physics(control_frequency, parameters)` builds a `Physics` whose timestep
 divides the control period; `Physics.set_parameters` writes physical parameters
@@ -27,6 +28,10 @@ from qube_suite.arguments import is_number, keywords_of
 from qube_suite.domains.interface import MeasuredState
 
 MODEL_PATH = pathlib.Path(__file__).resolve().parent.parent / "assets" / "qube.xml"
+"""The Qube alone: bodies, joints, actuator, keyframes `hanging` and `upright`."""
+
+SCENE_PATH = MODEL_PATH.with_name("scene.xml")
+"""The Qube on a bench with lights, cameras and textures: what a simulated Qube renders."""
 
 MAX_TIMESTEP = 0.004
 """Largest physics timestep (s): RK4 at 4 ms keeps trajectories within 3.5e-4 rad of a
@@ -118,7 +123,7 @@ class Physics(MeasuredState, dm_mujoco.Physics):
             raise TypeError("a closed simulated Qube cannot be pickled or copied: its MuJoCo data was "
                             "freed by close(); copy the environment before closing it")
         model, data = self._model_ptr, self._data_ptr
-        recipe = ModelRecipe(MODEL_PATH.read_text(), model.opt.timestep,
+        recipe = ModelRecipe(SCENE_PATH.read_text(), MODEL_PATH.read_text(), model.opt.timestep,
                              self._parameters if self._parameters_written else None,
                              self._led_rgba.tolist(), self._ids.led_geom)
         state = {key: value for key, value in self.__dict__.items() if key not in self._REBUILT_ATTRIBUTES}
@@ -260,7 +265,7 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         else:
             self._step_for(self._step_duration_model(nstep * self._options.timestep))
         exact = self._exact_state()
-        if not abs(exact[2]) + abs(exact[3]) < MAX_PLAUSIBLE_SPEED:  # also catches inf and NaN
+        if not plausible(exact[2], exact[3]):
             self._undo_step(before, exact)
             return
         self._exact = exact
@@ -324,10 +329,9 @@ class Physics(MeasuredState, dm_mujoco.Physics):
 
     def _step_for(self, duration: float) -> None:
         nominal_timestep = self._options.timestep
-        nstep = physics_steps(duration)
-        self._options.timestep = duration / nstep
+        nstep, self._options.timestep = split_step(duration)
         try:
-            mujoco.mj_step(self._model_ptr, self._data_ptr, nstep)
+            mujoco.mj_step(self._model_ptr, self._data_ptr, int(nstep))
         finally:
             self._options.timestep = nominal_timestep
 
@@ -415,20 +419,22 @@ def write_parameters(model: mujoco.MjModel, data: mujoco.MjData,
 
 
 class ModelRecipe:
-    """How to rebuild a Qube's compiled model: its XML (stored compressed), timestep (s), physical
-    parameters (None: the XML's, never written) and LED colour; a few kB where the compiled model
-    is 5.5 MB (mostly textures)."""
+    """How to rebuild a Qube's compiled model: the scene's XML and the Qube's it includes (stored
+    compressed), timestep (s), physical parameters (None: the XML's, never written) and LED colour;
+    a few kB where the compiled model is 5.5 MB (mostly textures)."""
 
-    def __init__(self, xml: str, timestep: float, parameters: Mapping[str, float] | None,
+    def __init__(self, scene_xml: str, qube_xml: str, timestep: float, parameters: Mapping[str, float] | None,
                  led_rgba: Sequence[float], led_geom: int):
-        self.xml = zlib.compress(xml.encode(), 9)
+        self.xml = zlib.compress(scene_xml.encode(), 9)
+        self.qube_xml = zlib.compress(qube_xml.encode(), 9)
         self.timestep = float(timestep)
         self.parameters = None if parameters is None else dict(parameters)
         self.led_rgba, self.led_geom = list(led_rgba), int(led_geom)
 
     def build(self) -> mujoco.MjModel:
         """The compiled model."""
-        model = mujoco.MjModel.from_xml_string(zlib.decompress(self.xml).decode())
+        model = mujoco.MjModel.from_xml_string(zlib.decompress(self.xml).decode(),
+                                               assets={MODEL_PATH.name: zlib.decompress(self.qube_xml)})
         model.opt.timestep = self.timestep
         if self.parameters is not None:
             write_parameters(model, mujoco.MjData(model), self.parameters)
@@ -470,12 +476,17 @@ def substeps_per_control_period(control_frequency: float) -> int:
     return max(1, math.ceil(1.0 / (control_frequency * MAX_TIMESTEP) - 1e-9))
 
 
-def physics_steps(duration: float | np.ndarray) -> int | np.ndarray:
-    """Fewest equal physics steps covering `duration` (s; or an array of durations) with timesteps of at
-    most MAX_TIMESTEP; the timestep is then `duration / physics_steps(duration)`."""
-    if isinstance(duration, np.ndarray):
-        return np.maximum(1, np.ceil(duration / MAX_TIMESTEP - 1e-9)).astype(np.intp)
-    return max(1, math.ceil(duration / MAX_TIMESTEP - 1e-9))
+def split_step(duration):
+    """A control step lasting `duration` (s; a number or an array, one per Qube) split into the fewest
+    equal physics steps of at most MAX_TIMESTEP: (their number, their timestep in s), as numpy values."""
+    nstep = np.maximum(1, np.ceil(duration / MAX_TIMESTEP - 1e-9)).astype(np.intp)
+    return nstep, duration / nstep
+
+
+def plausible(arm_velocity, pendulum_velocity):
+    """Whether a simulation with these velocities (rad/s; numbers or arrays, one per Qube) has not
+    diverged: |d theta / dt| + |d alpha / dt| below MAX_PLAUSIBLE_SPEED, False for inf and NaN."""
+    return abs(arm_velocity) + abs(pendulum_velocity) < MAX_PLAUSIBLE_SPEED
 
 
 def physics_timestep(control_frequency: float) -> float:
@@ -488,7 +499,7 @@ def make_physics(control_frequency: float = 250.0, parameters: Mapping[str, floa
     a calibration (`Calibration` or its file's path; see `qube_suite.parameters.values_of`)."""
     check_control_frequency(control_frequency)
     overrides = params.values_of(parameters)
-    physics = Physics.from_xml_path(str(MODEL_PATH))
+    physics = Physics.from_xml_path(str(SCENE_PATH))
     physics.model.opt.timestep = physics_timestep(control_frequency)
     if overrides:
         physics.set_parameters(overrides)

@@ -10,7 +10,7 @@ one model until their parameters are changed, which keeps nominal batches in cac
 
 Like the single `qube.Physics`, a batch takes a sensor, an actuator and a
 step-duration model (`set_sensor_model`, ...): here effects on arrays with one row
-per world (`qube_suite.randomization.BatchChain`), restarted for just the worlds
+per world (`qube_suite.randomization.Chain`), restarted for just the worlds
 that start an episode. With a step-duration model each world's step is split
 into its own number of equal timesteps (at most `qube.MAX_TIMESTEP`), set in its
 own model, and the worlds taking the same number advance in one rollout call.
@@ -39,18 +39,15 @@ MIN_WORLDS_PER_THREAD = 8
 
 
 def physics_model(control_frequency: float) -> mujoco.MjModel:
-    """The Qube's compiled model for control at `control_frequency` (Hz), without its textures.
+    """The Qube's compiled model (`assets/qube.xml`, without the scene) for control at
+    `control_frequency` (Hz).
 
-    Textures are only drawn; without them a model takes 18 kB instead of 5.5 MB, which
-    matters with one model per world. The dynamics are those of `qube.make_physics`.
+    The scene (bench, lights, cameras, textures) is only drawn; without it a model takes
+    9 kB instead of 5.5 MB, which matters with one model per world. The dynamics are
+    those of `qube.make_physics`.
     """
     qube.check_control_frequency(control_frequency)
-    spec = mujoco.MjSpec.from_file(str(qube.MODEL_PATH))
-    for texture in list(spec.textures):
-        spec.delete(texture)
-    for material in spec.materials:
-        material.textures = [""] * len(material.textures)
-    model = spec.compile()
+    model = mujoco.MjModel.from_xml_path(str(qube.MODEL_PATH))
     model.opt.timestep = qube.physics_timestep(control_frequency)
     return model
 
@@ -257,8 +254,7 @@ class QubeBatch:
     def _undo_diverged(self, after: np.ndarray, before: np.ndarray) -> None:
         """Mark in `diverged` the worlds whose states `after` a step are implausible and give them
         back their positions and velocities `before` it (their time stays advanced)."""
-        speeds = np.abs(after[:, self._dtheta]) + np.abs(after[:, self._dalpha])
-        self.diverged = ~(speeds < qube.MAX_PLAUSIBLE_SPEED)  # also catches inf and NaN
+        self.diverged = ~qube.plausible(after[:, self._dtheta], after[:, self._dalpha])
         if self.diverged.any():
             after[self.diverged, 1:] = before[self.diverged, 1:]
 
@@ -282,8 +278,8 @@ class QubeBatch:
         """Advance each world by its own duration (s) with its motor voltage (V) held: equal timesteps
         of at most MAX_TIMESTEP set in its model, as `qube.Physics` does, and one rollout call for the
         worlds taking the same number of them."""
-        nsteps = qube.physics_steps(durations)
-        for options, timestep in zip(self._options, (durations / nsteps).tolist(), strict=True):
+        nsteps, timesteps = qube.split_step(durations)
+        for options, timestep in zip(self._options, timesteps.tolist(), strict=True):
             options.timestep = timestep
         for nstep in np.unique(nsteps).tolist():
             worlds = np.flatnonzero(nsteps == nstep)

@@ -13,20 +13,20 @@ to the domain (`randomizer.py`).
 """
 
 from qube_suite.randomization.amplifier import DeadZone, Saturation, VoltageOffset
-from qube_suite.randomization.base import BatchChain, Chain, Effect, Field, Streams
+from qube_suite.randomization.base import Chain, Effect, Field, OneRow, Streams
 from qube_suite.randomization.catalog import EFFECTS
 from qube_suite.randomization.config import Randomization, load, parse
 from qube_suite.randomization.delays import ActionDelay, ObservationDelay
 from qube_suite.randomization.distributions import Distribution
 from qube_suite.randomization.presets import PRESETS
-from qube_suite.randomization.randomizer import BatchRandomizer, Randomizer
+from qube_suite.randomization.randomizer import OneQube, Randomizer
 from qube_suite.randomization.sampling import Sample, sample, sample_effects, sample_parameters
-from qube_suite.randomization.sensors import ObservationNoise, Quantization, VelocityFilter
+from qube_suite.randomization.sensors import FilteredVelocity, ObservationNoise, Quantization
 from qube_suite.randomization.timing import ControlJitter
 
 __all__ = [
-    "EFFECTS", "PRESETS", "ActionDelay", "BatchChain", "BatchRandomizer", "Chain", "ControlJitter",
-    "DeadZone", "Distribution", "Effect", "Field", "ObservationDelay", "ObservationNoise", "Quantization",
-    "Randomization", "Randomizer", "Sample", "Saturation", "Streams", "VelocityFilter", "VoltageOffset",
+    "EFFECTS", "PRESETS", "ActionDelay", "Chain", "ControlJitter", "DeadZone", "Distribution", "Effect",
+    "Field", "FilteredVelocity", "ObservationDelay", "ObservationNoise", "OneQube", "OneRow", "Quantization",
+    "Randomization", "Randomizer", "Sample", "Saturation", "Streams", "VoltageOffset",
     "load", "parse", "sample", "sample_effects", "sample_parameters",
 ]

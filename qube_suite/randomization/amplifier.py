@@ -6,8 +6,6 @@ clip(dead_zone(v + offset), -limit, limit).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from qube_suite.randomization.base import Effect, Field, per_env
@@ -23,10 +21,6 @@ class VoltageOffset(Effect):
 
     def __init__(self, voltage: float | np.ndarray):
         self.voltage = np.asarray(voltage, dtype=np.float64)
-        self._voltage = self.voltage.tolist()
-
-    def output_one(self, x: float) -> float:
-        return x + self._voltage
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
         return x + per_env(self.voltage, rows)
@@ -43,10 +37,6 @@ class DeadZone(Effect):
 
     def __init__(self, voltage: float | np.ndarray):
         self.voltage = np.asarray(voltage, dtype=np.float64)
-        self._voltage = self.voltage.tolist()
-
-    def output_one(self, x: float) -> float:
-        return math.copysign(max(abs(x) - self._voltage, 0.0), x)
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
         return np.copysign(np.maximum(np.abs(x) - per_env(self.voltage, rows), 0.0), x)
@@ -62,10 +52,6 @@ class Saturation(Effect):
 
     def __init__(self, voltage: float | np.ndarray):
         self.voltage = np.asarray(voltage, dtype=np.float64)
-        self._voltage = self.voltage.tolist()
-
-    def output_one(self, x: float) -> float:
-        return min(max(x, -self._voltage), self._voltage)
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
         limit = per_env(self.voltage, rows)

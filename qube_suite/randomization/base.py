@@ -1,29 +1,24 @@
-"""The effect interface: a sensor or actuator imperfection that any Qube domain can apply, to one or n Qubes.
+"""The effect interface: a sensor or actuator imperfection that any Qube domain can apply to n Qubes.
 
-An effect transforms one signal once per control step. For one Qube, on Python
-floats (the fast path of a single environment):
+An effect transforms one signal once per control step, for n Qubes at once, on
+float64 arrays with one row per Qube: states of shape (n, 4), each
+[theta, alpha, dtheta, dalpha] (rad, rad/s; angles wrapped to (-pi, pi]), and
+motor voltages (V) or step durations (s) of shape (n,). A single Qube is a batch
+of one (`OneRow` applies effects to one Qube's floats):
 
-    y = effect.reset_one(x)    # start afresh from x (the initial state, or 0 V); the output for x
-    y = effect.step_one(x)     # the output one control step later
+    y = effect.reset(x, rows=None)   # start afresh from x (the initial state, or 0 V); the output for x
+    y = effect(x)                    # the output one control step later
 
-where a state is a sequence of 4 floats [theta, alpha, dtheta, dalpha] (rad,
-rad/s; angles wrapped to (-pi, pi]) and a motor voltage (V) or a step duration
-(s) is one float. For n Qubes at once, on float64 arrays of shape (n, 4) or (n,):
-
-    y = effect.reset(x, rows=None)
-    y = effect(x)
-
-Settings are numbers, or (for n Qubes) arrays with one entry per environment
-along their first axis; memory (delay lines, filter states) then lives in arrays
+Settings are numbers shared by every Qube, or arrays with one entry per Qube
+along their first axis; memory (delay lines, filter states) lives in arrays
 shaped by the signal given to `reset`. `effect.reset(x, rows)` restarts only the
-environments `rows` (integer indices) from their signals `x` (first axis
-len(rows)) and returns their outputs; the others keep their memory. A caller
-that redraws the settings of some environments gives them to those rows first
-with `effect.set_rows(rows, fresh)`, where `fresh` is the same effect built for
-len(rows) environments. Stochastic effects draw from one generator, or from
-`Streams`, one generator per environment, so that each environment draws the
-numbers its one-Qube path would. Both paths give identical numbers; effects
-never modify their input. `Chain` and `BatchChain` apply several effects in order.
+Qubes `rows` (integer indices) from their signals `x` (first axis len(rows)) and
+returns their outputs; the others keep their memory. A caller that redraws the
+settings of some Qubes gives them to those rows first with
+`effect.set_rows(rows, fresh)`, where `fresh` is the same effect built for
+len(rows) Qubes. Stochastic effects draw from one generator, or from `Streams`,
+one generator per Qube, so that each Qube draws the numbers it would alone.
+Effects never modify their input. `Chain` applies several effects in order.
 """
 
 from __future__ import annotations
@@ -72,8 +67,8 @@ class Effect:
 
     Subclasses set `name` (their key in a config's `effects`), `signal` (what they
     transform: "state", "voltage" or "duration"), `fields` and `stochastic`
-    (whether they draw from a generator), and implement `output` and `output_one`
-    if they have no memory, or the reset and step methods of both paths if they do.
+    (whether they draw from a generator), and implement `output` if they have no
+    memory, or `reset` and `__call__` if they do.
     """
 
     name: ClassVar[str]
@@ -99,16 +94,6 @@ class Effect:
         environments; their memory restarts at the next `reset(x, rows)`."""
         for attribute in self.per_env_settings:
             getattr(self, attribute)[rows] = getattr(fresh, attribute)
-
-    def reset_one(self, x):
-        return self.output_one(x)
-
-    def step_one(self, x):
-        return self.output_one(x)
-
-    def output_one(self, x):
-        """Output for one Qube's `x` (Python floats) of a memoryless effect."""
-        raise NotImplementedError
 
     def reset(self, x: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         return self.output(x, rows)
@@ -164,28 +149,8 @@ def generator_of(rng, rows: np.ndarray | None):
 
 
 class Chain:
-    """Effects applied in order to one Qube's signal: a domain's sensor or actuator model.
-
-    `reset(x)` when the state is set directly or the episode starts, a call per
-    control step; Python floats in and out (4 for a state, 1 for a voltage).
-    """
-
-    def __init__(self, effects: Iterable[Effect]):
-        self.effects = tuple(effects)
-
-    def reset(self, x):
-        for effect in self.effects:
-            x = effect.reset_one(x)
-        return x
-
-    def __call__(self, x):
-        for effect in self.effects:
-            x = effect.step_one(x)
-        return x
-
-
-class BatchChain:
-    """Effects applied in order to the signals of n Qubes (float64 arrays), itself an effect."""
+    """Effects applied in order to the signals of n Qubes (float64 arrays, one row per Qube): a
+    domain's sensor, actuator or step-duration model; itself an effect."""
 
     def __init__(self, effects: Iterable[Effect]):
         self.effects = tuple(effects)
@@ -201,3 +166,18 @@ class BatchChain:
         for effect in self.effects:
             x = effect(x)
         return x
+
+
+class OneRow:
+    """A `Chain` applied to one Qube's signal as a batch of one: Python floats in and out (4 for a
+    state, 1 for a voltage or a duration), the hook contract of one-Qube domains (`set_sensor_model`,
+    `set_actuator_model`, `set_step_duration_model`)."""
+
+    def __init__(self, chain: Chain):
+        self.chain = chain
+
+    def reset(self, x):
+        return self.chain.reset(np.array([x], dtype=np.float64))[0].tolist()
+
+    def __call__(self, x):
+        return self.chain(np.array([x], dtype=np.float64))[0].tolist()

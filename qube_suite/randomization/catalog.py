@@ -5,11 +5,11 @@ from __future__ import annotations
 from qube_suite.randomization.amplifier import DeadZone, Saturation, VoltageOffset
 from qube_suite.randomization.base import Effect
 from qube_suite.randomization.delays import ActionDelay, ObservationDelay
-from qube_suite.randomization.sensors import ObservationNoise, Quantization, VelocityFilter
+from qube_suite.randomization.sensors import FilteredVelocity, ObservationNoise, Quantization
 from qube_suite.randomization.timing import ControlJitter
 
 EFFECTS: dict[str, type[Effect]] = {cls.name: cls for cls in (
-    Quantization, VelocityFilter, ObservationNoise, ObservationDelay,
+    Quantization, FilteredVelocity, ObservationNoise, ObservationDelay,
     ActionDelay, VoltageOffset, DeadZone, Saturation,
     ControlJitter,
 )}

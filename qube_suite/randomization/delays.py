@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import collections
 from collections.abc import Mapping
 
 import numpy as np
@@ -60,14 +59,6 @@ class Delay(Effect):
             self._line = np.concatenate([padding, oldest_first])
             self._head = length - 1
         self._length = max(self._length, length)
-
-    def reset_one(self, x):
-        self._queue = collections.deque([x] * self._length, maxlen=self._length)
-        return x
-
-    def step_one(self, x):
-        self._queue.append(x)
-        return self._queue[0]
 
     def reset(self, x: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         if rows is None:

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from qube_suite.randomization.base import BatchChain, Chain, Effect, Streams
+from qube_suite.randomization.base import Chain, OneRow, Streams
 from qube_suite.randomization.catalog import EFFECTS
 from qube_suite.randomization.config import Randomization
 from qube_suite.randomization.distributions import Distribution
@@ -17,74 +17,34 @@ HOOKS = {"state": "set_sensor_model", "voltage": "set_actuator_model", "duration
 
 
 class Randomizer:
-    """Draws each episode's parameters and effects and applies them to a Qube domain.
+    """Draws each episode's parameters and effects and applies them to a Qube domain: one Qube, or
+    each Qube ("world") of a batch when it starts an episode.
 
-    The domain (`physics`) needs `set_parameters` for physical parameters and the
-    hooks in HOOKS for the effects it is asked to apply; a missing one is a
-    ValueError here, before any episode. Hooks the config does not use are left
-    alone, so a domain without randomization keeps its plain step path.
+    The domain needs `set_parameters` for physical parameters and the hooks in HOOKS
+    for the effects it is asked to apply; a missing one is a ValueError here, before
+    any episode. Hooks the config does not use are left alone, so a domain without
+    randomization keeps its plain step path. A batch (`qube_suite.domains.qube_batch.QubeBatch`,
+    with `num_worlds`) takes effects on arrays with one row per world; a one-Qube domain
+    is a batch of one (`OneQube`), whose hooks take one Qube's floats (`OneRow`).
 
-    Args:
-        config: what to draw.
-        physics: a Qube domain.
-        control_period: seconds per control step (delays in seconds, velocity filter).
-    """
-
-    def __init__(self, config: Randomization, physics, control_period: float):
-        check_domain(config, physics)
-        self.config = config
-        self._physics = physics
-        self._control_period = control_period
-        self._rng = np.random.RandomState()  # reseeded at every episode
-        self._effects: dict[str, tuple[dict, Effect]] = {}  # name -> (settings, effect) of the last episode
-
-    def start_episode(self, random: np.random.RandomState) -> Sample:
-        """Draw the next episode's values from `random` and apply them; returns what was drawn.
-
-        Call before the episode's initial state is set: the effects start afresh
-        from it when it is. Effects whose settings did not change since the last
-        episode are kept (the domain restarts them), the others built anew; either
-        way the noise and jitter of the episode are the draws that follow its seed.
-        """
-        drawn = sample(self.config, random)
-        if self.config.parameters:
-            self._physics.set_parameters(drawn.parameters)
-        changed = set()
-        for name, settings in drawn.effects.items():
-            kept = self._effects.get(name)
-            if kept is None or kept[0] != settings:
-                cls = EFFECTS[name]
-                self._effects[name] = settings, cls.from_settings(settings, self._control_period, self._rng)
-                changed.add(cls.signal)
-        for signal in changed:
-            chain = [effect for name, (_, effect) in self._effects.items() if EFFECTS[name].signal == signal]
-            getattr(self._physics, HOOKS[signal])(Chain(chain))
-        if drawn.seed is not None:  # after installing, which measures: the stream starts with the episode
-            self._rng.seed(drawn.seed)
-        return drawn
-
-
-class BatchRandomizer:
-    """Draws each world's parameters and effects when it starts an episode and applies them to a
-    batch of Qubes (`qube_suite.domains.qube_batch.QubeBatch`), as `Randomizer` does for one.
-
-    A world draws from the random state it is given, exactly what `Randomizer` draws
-    from it, and its noise and jitter come from a generator of its own (`Streams`)
-    seeded as `Randomizer` seeds its one: world i replays the episodes of a single
-    Qube randomized from the same random state. The effects run on arrays with
-    per-world settings and memory, installed once; a world's start gives it its
-    settings (`Effect.set_rows`), and the batch restarts its memory (`reset_world`).
-    Until a world's first episode its settings are a placeholder draw.
+    World i draws from the random state it is given, and its noise and jitter come from
+    a generator of its own (`Streams`) seeded by that draw, so world i of a batch
+    replays the episodes of a single Qube randomized from the same random state. The
+    effects have per-world settings and memory, installed once; a world's start gives
+    it its settings (`Effect.set_rows`), and the domain restarts its memory when the
+    world's initial state is set. Until a world's first episode its settings are a
+    placeholder draw.
 
     Args:
         config: what to draw.
-        batch: the Qubes.
+        domain: a Qube domain, or a batch of them.
         control_period: seconds per control step (delays in seconds, velocity filter).
     """
 
-    def __init__(self, config: Randomization, batch, control_period: float):
-        check_domain(config, batch)
+    def __init__(self, config: Randomization, domain, control_period: float):
+        check_domain(config, domain)
         self.config = config
+        batch = domain if hasattr(domain, "num_worlds") else OneQube(domain)
         self._batch = batch
         self._control_period = control_period
         self._generators = [np.random.RandomState() for _ in range(batch.num_worlds)]  # reseeded per episode
@@ -98,12 +58,13 @@ class BatchRandomizer:
         """Effects with settings drawn per episode (the others have the same settings in every world)."""
         for signal in {EFFECTS[name].signal for name in self._effects}:
             chain = [effect for name, effect in self._effects.items() if EFFECTS[name].signal == signal]
-            getattr(batch, HOOKS[signal])(BatchChain(chain))
+            getattr(batch, HOOKS[signal])(Chain(chain))
 
-    def start_world(self, world: int, random: np.random.RandomState) -> Sample:
+    def start_episode(self, random: np.random.RandomState, world: int = 0) -> Sample:
         """Draw `world`'s next episode from `random` and apply it; returns what was drawn.
 
-        Call before the world's initial state is set (`reset_world` restarts its effects).
+        Call before the episode's initial state is set: the domain restarts the world's
+        effects from it.
         """
         drawn = sample(self.config, random)
         if self.config.parameters:
@@ -115,6 +76,28 @@ class BatchRandomizer:
         if drawn.seed is not None:
             self._generators[world].seed(drawn.seed)
         return drawn
+
+
+class OneQube:
+    """A one-Qube domain as a batch of one world, as `Randomizer` drives it: its parameters set for
+    world 0, its hooks given each `Chain` through `OneRow`."""
+
+    num_worlds = 1
+
+    def __init__(self, physics):
+        self.physics = physics
+
+    def set_parameters(self, world: int, parameters: Mapping[str, float]) -> None:
+        self.physics.set_parameters(parameters)
+
+    def set_sensor_model(self, chain: Chain) -> None:
+        self.physics.set_sensor_model(OneRow(chain))
+
+    def set_actuator_model(self, chain: Chain) -> None:
+        self.physics.set_actuator_model(OneRow(chain))
+
+    def set_step_duration_model(self, chain: Chain) -> None:
+        self.physics.set_step_duration_model(OneRow(chain))
 
 
 def check_domain(config: Randomization, physics) -> None:

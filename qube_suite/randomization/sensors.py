@@ -12,6 +12,7 @@ import numpy as np
 from qube_suite.angles import TAU, wrap_angle
 from qube_suite.parameters import ENCODER_COUNTS_PER_REVOLUTION
 from qube_suite.randomization.base import Effect, Field, generator_of, per_env
+from qube_suite.velocity_filter import VELOCITY_FILTER_CUTOFF, VelocityFilter
 
 
 class Quantization(Effect):
@@ -27,77 +28,45 @@ class Quantization(Effect):
 
     def __init__(self, counts_per_revolution: int | np.ndarray = ENCODER_COUNTS_PER_REVOLUTION):
         self.resolution = TAU / np.asarray(counts_per_revolution, dtype=np.float64)
-        self._resolution = float(self.resolution) if self.resolution.ndim == 0 else None
-
-    def output_one(self, x):
-        q = self._resolution
-        return [wrap_angle(q * round(x[0] / q)), wrap_angle(q * round(x[1] / q)), x[2], x[3]]
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
         resolution = per_env(self.resolution, rows)[..., None]
         y = x.copy()
-        y[..., :2] = wrap_angle(resolution * np.round(x[..., :2] / resolution))
+        y[..., :2] = wrap_angle(resolution * np.rint(x[..., :2] / resolution))
         return y
 
 
-class VelocityFilter(Effect):
+class FilteredVelocity(Effect):
     """Velocities estimated from the measured angles by Quanser's filter a s / (s + a)
-    (a = `cutoff`, 50 rad/s on the Qube) instead of exact.
-
-    Discretised ramp-invariantly (exact for an angle varying linearly between
-    samples, i.e. a first-order hold) at the control period T:
-    v_k = p v_(k-1) + (1 - p) / T (angle_k - angle_(k-1)), p = exp(-a T).
-    Its pole is the continuous filter's and a constant speed comes out exact; the
-    zero-order-hold equivalent would overestimate every speed by aT / (1 - p) (10%
-    at 250 Hz), Tustin's moves the pole (0.8182 instead of 0.8187). The hardware
-    domain's estimator uses the same discretisation. Angle differences are
-    wrapped, so a full turn is no jump. At reset the filter is settled: it starts
-    from the exact velocities.
+    (a = `cutoff`, 50 rad/s on the Qube) instead of exact: the hardware domain's
+    `qube_suite.velocity_filter.VelocityFilter`, discretised ramp-invariantly at the control
+    period. Angle differences are wrapped, so a full turn is no jump. At reset the filter
+    is settled: it starts from the exact velocities.
     """
 
     name = "velocity_filter"
     signal = "state"
-    fields = {"cutoff": Field("rad/s", "filter bandwidth a", default=50.0,
+    fields = {"cutoff": Field("rad/s", "filter bandwidth a", default=VELOCITY_FILTER_CUTOFF,
                               minimum=0.0, exclusive_minimum=True)}
-    per_env_settings = ("pole", "gain")
 
     @classmethod
-    def from_settings(cls, settings: Mapping, control_period: float, rng) -> VelocityFilter:
+    def from_settings(cls, settings: Mapping, control_period: float, rng) -> FilteredVelocity:
         return cls(settings["cutoff"], control_period)
 
     def __init__(self, cutoff: float | np.ndarray, control_period: float):
-        self.pole = np.exp(-np.asarray(cutoff, dtype=np.float64) * control_period)
-        self.gain = (1.0 - self.pole) / control_period
-        if self.pole.ndim == 0:
-            self._pole, self._gain = float(self.pole), float(self.gain)
+        self.filter = VelocityFilter(control_period, cutoff)
 
-    def reset_one(self, x):
-        self._last = x
-        return x
-
-    def step_one(self, x):
-        theta, alpha, _, _ = x
-        last_theta, last_alpha, dtheta, dalpha = self._last
-        self._last = y = [theta, alpha,
-                          self._pole * dtheta + self._gain * wrap_angle(theta - last_theta),
-                          self._pole * dalpha + self._gain * wrap_angle(alpha - last_alpha)]
-        return y
+    def set_rows(self, rows: np.ndarray, fresh: FilteredVelocity) -> None:
+        for attribute in ("cutoff", "pole", "gain"):
+            getattr(self.filter, attribute)[rows] = getattr(fresh.filter, attribute)
 
     def reset(self, x: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
-        if rows is None:
-            self._angles = x[..., :2].copy()
-            self._velocities = x[..., 2:].copy()
-        else:
-            self._angles[rows] = x[..., :2]
-            self._velocities[rows] = x[..., 2:]
+        self.filter.reset(x[..., :2], x[..., 2:], rows)
         return x
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         y = x.copy()
-        self._velocities = (self.pole[..., None] * self._velocities
-                            + self.gain[..., None] * wrap_angle(y[..., :2] - self._angles))
-        self._angles = x[..., :2].copy()
-        y[..., 2:] = self._velocities
+        y[..., 2:] = self.filter(x[..., :2])
         return y
 
 
@@ -119,12 +88,6 @@ class ObservationNoise(Effect):
     def __init__(self, std, rng):
         self.std = np.asarray(std, dtype=np.float64)
         self._rng = rng
-        self._std = self.std.tolist()
-
-    def output_one(self, x):
-        n0, n1, n2, n3 = self._rng.standard_normal(4).tolist()
-        s0, s1, s2, s3 = self._std
-        return [wrap_angle(x[0] + s0 * n0), wrap_angle(x[1] + s1 * n1), x[2] + s2 * n2, x[3] + s3 * n3]
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
         noise = generator_of(self._rng, rows).standard_normal(x.shape)

@@ -28,10 +28,6 @@ class ControlJitter(Effect):
     def __init__(self, fraction: float | np.ndarray, rng):
         self.fraction = np.asarray(fraction, dtype=np.float64)
         self._rng = rng
-        self._fraction = self.fraction.tolist()
-
-    def output_one(self, x: float) -> float:
-        return x * (1.0 + self._fraction * (2.0 * self._rng.random() - 1.0))
 
     def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
         draws = generator_of(self._rng, rows).random(np.shape(x))

@@ -49,8 +49,8 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
     a single environment reset with seed s under the same actions.
 
     ## Spaces
-    Batched versions of the single environment's: actions (N, 1) float32 volts
-; observations (N, 4), (N, 5) in follow tasks, (N, 6) or
+    Batched versions of the single environment's: actions (N, 1) float32 volts;
+    observations (N, 4), (N, 5) in follow tasks, (N, 6) or
     (N, 7) with `observation="trig"`, float32. Actions beyond the voltage limit are
     clipped; NaN/inf, a wrong shape or a non-number raise ValueError before any
     world moves.
@@ -134,7 +134,7 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         self._steps_per_episode = episode_steps(time_limit, control_frequency)
         config = None if randomization is None else randomization_.load(randomization)
         self._batch = CommandedBatch(num_envs, control_frequency, threads)
-        self._randomizer = None if config is None else randomization_.BatchRandomizer(
+        self._randomizer = None if config is None else randomization_.Randomizer(
             config, self._batch, 1.0 / control_frequency)
         self._reset_hook = reset_hook
         self._randoms = self._task.randoms
@@ -247,7 +247,7 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         for world in worlds.tolist():
             random = self._randoms[world]
             if self._randomizer is not None:
-                draws[world] = self._randomizer.start_world(world, random)
+                draws[world] = self._randomizer.start_episode(random, world)
             if self._reset_hook is not None:
                 self._reset_hook(self._batch, world, random)
             self._task.initialize_episode(self._batch, world)
