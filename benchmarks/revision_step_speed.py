@@ -109,7 +109,8 @@ def main() -> int:
         times: dict[str, list[float]] = {name: [] for name in sources}
         for _ in range(args.rounds):
             for name, source in sources.items():
-                times[name].append(seconds_per_step(source, args.env, args.steps, args.num_envs, args.randomization))
+                times[name].append(seconds_per_step(source, args.env, args.steps, args.num_envs,
+                                                    args.randomization))
     for name, values in times.items():
         print(f"{name:>12}: best {min(values) * 1e6:6.2f} us/step (CPU), "
               f"median {statistics.median(values) * 1e6:6.2f}")

@@ -144,15 +144,20 @@ class QubeBatch:
         """Motor voltages (V) held since the last `step`."""
         return self._voltage
 
-    def step(self, volts: np.ndarray) -> None:
-        """Hold `volts` (V, one per world, already validated and limited) for one control period.
+    def set_voltage(self, volts: np.ndarray) -> None:
+        """Command one voltage per world (V, already validated and limited), held from the next
+        `step`: the domain interface's `set_voltage`, which the task's `before_step` calls."""
+        self._voltage = volts
+
+    def step(self) -> None:
+        """Hold the commanded voltages (`set_voltage`) for one control period.
 
         All worlds advance in one rollout call (with a step-duration model, one per number of
         physics steps); then they are measured. A world whose simulation diverges (speeds
         beyond `qube.MAX_PLAUSIBLE_SPEED`, inf or NaN) goes back to its state before the
         step, its time advanced, and is marked in `diverged`.
         """
-        self._voltage = volts
+        volts = self._voltage
         motor = volts if self._actuator_model is None else self._actuator_model(volts)
         if self._step_duration_model is None:
             self._control[:, :, 0] = motor[:, None]

@@ -18,20 +18,6 @@ from qube_suite.environment import DEFAULT_CONTROL_FREQUENCY, DEFAULT_TIME_LIMIT
 from qube_suite.episode_rules import judge_step
 from qube_suite.wrappers.gym_env import action_space, observation_space
 
-
-class CommandedBatch(QubeBatch):
-    """A `QubeBatch` that takes its voltages as one Qube does, by the domain interface's
-    `set_voltage` (from the task's `before_step`), and holds them at the next `advance`."""
-
-    def set_voltage(self, volts: np.ndarray) -> None:
-        """Command one voltage per world (V, validated and limited), held from the next `advance`."""
-        self._command = volts
-
-    def advance(self) -> None:
-        """Hold the commanded voltages for one control period (`QubeBatch.step`)."""
-        self.step(self._command)
-
-
 ResetHook = Callable[[QubeBatch, int, np.random.RandomState], None]
 """`hook(batch, world, random)`, called when `world` starts an episode, before the task draws its start."""
 
@@ -133,7 +119,7 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         self._task = suite.make_task("qube", task, {**task_kwargs, "random": seed}, worlds=num_envs)
         self._steps_per_episode = episode_steps(time_limit, control_frequency)
         config = None if randomization is None else randomization_.load(randomization)
-        self._batch = CommandedBatch(num_envs, control_frequency, threads)
+        self._batch = QubeBatch(num_envs, control_frequency, threads)
         self._randomizer = None if config is None else randomization_.Randomizer(
             config, self._batch, 1.0 / control_frequency)
         self._reset_hook = reset_hook
@@ -205,7 +191,7 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
                 raise RuntimeError(f"worlds {np.flatnonzero(self._ended).tolist()} have ended; reset them "
                                    "with reset(options={'reset_mask': mask}) before step()")
             restarting = self._ended.copy()  # NEXT_STEP: these worlds start over instead of stepping
-        batch.advance()
+        batch.step()
         self._step_counts += 1
         diverged = batch.diverged if restarting is None else batch.diverged & ~restarting
         draws = {} if restarting is None else self._start(np.flatnonzero(restarting))
