@@ -88,6 +88,10 @@ fraction of the swing-up energy (2 mp g l) above hanging at rest, however slowly
 (a swing seen at its turning point is slow): the swing-up pumps a calm pendulum, not a swinging one.
 A quarter is a swing of about 60 degrees from hanging."""
 
+FRESH_ESTIMATE_TIME = 0.1
+"""Seconds of samples at 0 V when a reset wakes the board: five time constants of the velocity filter, so
+that the reset controllers start from the Qube's present state, not from where the last episode left it."""
+
 HOLD_TIME = 0.5
 """A reset is done when its condition has held this long (s)."""
 
@@ -334,11 +338,13 @@ class Physics(MeasuredState, control.Physics):
             if not self.qube.is_open:
                 self.qube.open(zero_encoders=self._zero_at_open)
                 self._zero_at_open = False  # zeroed once: from now on the board's counts hold
-                self._estimator.reset()
-                self._sample(0.0)
-                self._measured = self._estimate
             else:
                 self.qube.resume()
+            # The Qube moved on while the board idled: estimate its state afresh at 0 V.
+            self._estimator.reset()
+            for _ in range(max(1, round(FRESH_ESTIMATE_TIME * self._frequency))):
+                self._sample(0.0)
+            self._measured = self._estimate
         except BaseException as error:
             self._stop_after(error)
             raise

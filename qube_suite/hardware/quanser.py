@@ -217,6 +217,10 @@ class _Handle:
             attempt(board.write_digital, c["digital_outputs"], len(c["digital_outputs"]),
                     np.zeros(len(c["digital_outputs"]), dtype=np.int8))
             attempt(board.write_other, c["led_outputs"], len(c["led_outputs"]), np.array(LED_OFF_STATE))
+            if errors and attempt(board.watchdog_is_expired):
+                # It expired between the check and the writes, which it then refused: the outputs are
+                # at their expiration states (0 V, amplifier off), which is what the writes were for.
+                errors = [error for error in errors if isinstance(error, (KeyboardInterrupt, SystemExit))]
         attempt(board.watchdog_stop)  # only after the outputs are zeroed
         if task is not None:
             attempt(board.task_stop, task)
@@ -473,9 +477,17 @@ class QuanserWrapper:
         self._check_amplifier()
         self._check_encoders(missed)
         self._check_arm()
-        board.write_analog(self._channels["analog_outputs"], len(volts), volts)
-        if rgb is not None:
-            board.write_other(self._channels["led_outputs"], len(rgb), rgb)
+        try:
+            board.write_analog(self._channels["analog_outputs"], len(volts), volts)
+            if rgb is not None:
+                board.write_other(self._channels["led_outputs"], len(rgb), rgb)
+        except self._board_error as error:
+            if board.watchdog_is_expired():  # it expired after the reload (the process was held up)
+                self._stop(WatchdogExpiredError(
+                    f"the watchdog expired between a sample and its action (no action for "
+                    f"{self.watchdog_timeout} s), so the board zeroed its outputs; resume() drives again"),
+                    error)
+            self._stop(BoardIOError(f"the board refused the voltage: {error_text(error)}"), error)
         return self._currents.copy(), self._encoders.copy(), self._others.copy()
 
     def idle(self) -> None:
