@@ -10,8 +10,7 @@ import pytest
 from hil_helpers import fake_quanser_sdk
 
 from qube_suite import suite
-from qube_suite.hardware import QubeServo2, _hil_sim
-from qube_suite.hardware.errors import NotAtRestError
+from qube_suite.hardware import NotAtRestError, QubeServo2, _hil_sim
 from qube_suite.hardware.quanser import REST_CHECK_TIME
 
 

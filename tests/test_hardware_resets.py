@@ -97,3 +97,27 @@ def test_a_balance_reset_swings_up_a_calm_pendulum_directly_without_the_check():
         env.physics.qube.board.set_true_state([0.0, math.pi - 0.2, 0.0, 0.0])  # a small swing
         env.reset()
     assert log[0][0] == "swingup"
+
+
+def test_the_reset_controllers_are_designed_for_the_qubes_own_parameters(tmp_path):
+    from qube_suite.baselines.model import RigidBodyModel
+
+    calibration = tmp_path / "calibration.yaml"
+    calibration.write_text("parameters:\n  pendulum_mass: 0.03\n  arm_damping: 1.0e-5\n")
+    env = suite.load("qube_hardware", "balance", domain_kwargs={"device": "qube_servo3",
+                                                                  "parameters": str(calibration)})
+    expected = RigidBodyModel.from_parameters({"pendulum_mass": 0.03, "arm_damping": 1.0e-5,
+                                               **env.physics.design_parameters()})
+    for name in RESET_CONTROLLERS:
+        model = env.physics._controllers[name].model
+        assert model.gravity_torque == pytest.approx(expected.gravity_torque)
+        assert model.torque_per_volt == pytest.approx(expected.torque_per_volt)  # the Qube-Servo 3's motor
+    nominal = RigidBodyModel.from_parameters({})
+    assert expected.gravity_torque != pytest.approx(nominal.gravity_torque)
+    assert env.physics.design_parameters()["motor_resistance"] == 7.5
+    env.close()
+
+
+def test_a_misspelt_parameter_of_the_hardware_domain_is_a_clear_error():
+    with pytest.raises(ValueError, match="pendulum_mas.*valid names"):
+        suite.load("qube_hardware", "balance", domain_kwargs={"parameters": {"pendulum_mas": 0.03}})

@@ -46,7 +46,7 @@ Qube-Servo 2 gives them.
   8 Hz), drawn from the board's seeded random stream. It is below the pendulum's
   Coulomb friction most of the time, so a pendulum hanging at rest moves less than
   an encoder count, but it exceeds it often enough that a pendulum left upright
-  at 0 V falls within a few seconds (1.4 to 4.7 s over 8 seeds), as a real one
+  at 0 V falls within a few seconds (0.95 to 5.3 s for seeds 0 to 7), as a real one
   does, instead of resting on its friction inside a count of upright. Its action
   on the arm is far below the arm's friction and is left out. 0 turns it off.
 
