@@ -235,6 +235,7 @@ class Physics(MeasuredState, control.Physics):
         self._voltage = 0.0
         self._applied = 0.0
         self._led: tuple[float, float, float] = RESET_LED
+        self._led_shown: tuple[float, float, float] | None = None  # on the board; None: unknown
         self._estimate: tuple[float, float, float, float] = (0.0, math.pi, 0.0, 0.0)
         self._measured = self._estimate
         self._sensor_model = None
@@ -340,6 +341,7 @@ class Physics(MeasuredState, control.Physics):
                 self._zero_at_open = False  # zeroed once: from now on the board's counts hold
             else:
                 self.qube.resume()
+            self._led_shown = None
             # The Qube moved on while the board idled: estimate its state afresh at 0 V.
             self._estimator.reset()
             for _ in range(max(1, round(FRESH_ESTIMATE_TIME * self._frequency))):
@@ -476,7 +478,8 @@ class Physics(MeasuredState, control.Physics):
 
     def _sample(self, volts: float) -> None:
         self.currents, self.encoders, self.others = self.qube.action(
-            [conventions.board_voltage(volts)], led=self._led)
+            [conventions.board_voltage(volts)], led=None if self._led == self._led_shown else self._led)
+        self._led_shown = self._led  # written only when it changes: one board call less per sample
         limit = self.qube.max_voltage
         self._applied = -limit if volts < -limit else limit if volts > limit else volts
         theta, alpha, dtheta, dalpha = self._estimator(self.encoders).tolist()
