@@ -89,8 +89,10 @@ fraction of the swing-up energy (2 mp g l) above hanging at rest, however slowly
 A quarter is a swing of about 60 degrees from hanging."""
 
 FRESH_ESTIMATE_TIME = 0.1
-"""Seconds of samples at 0 V when a reset wakes the board: five time constants of the velocity filter, so
-that the reset controllers start from the Qube's present state, not from where the last episode left it."""
+"""Seconds that dampen drives before a reset without the encoder check decides whether the pendulum
+swings too much for the swing-up: five time constants of the velocity filter, restarted when the board
+woke, so that the decision is made on the Qube's present state; meanwhile dampen already brakes the
+arm (at 0 V an arm still turning fast from the last episode could coast past the arm limit)."""
 
 HOLD_TIME = 0.5
 """A reset is done when its condition has held this long (s)."""
@@ -342,10 +344,8 @@ class Physics(MeasuredState, control.Physics):
             else:
                 self.qube.resume()
             self._led_shown = None
-            # The Qube moved on while the board idled: estimate its state afresh at 0 V.
-            self._estimator.reset()
-            for _ in range(max(1, round(FRESH_ESTIMATE_TIME * self._frequency))):
-                self._sample(0.0)
+            self._estimator.reset()  # the Qube moved on while the board idled: estimate it afresh
+            self._sample(0.0)
             self._measured = self._estimate
         except BaseException as error:
             self._stop_after(error)
@@ -366,8 +366,12 @@ class Physics(MeasuredState, control.Physics):
                 self._drive("dampen", self._hanging_at_rest, "settle hanging")
                 self._drive("dampen", self._centred_at_rest, "centre the arm")
                 self._check_pendulum_zero()
-            elif not upright or self._swinging(model):  # the swing-up pumps a calm pendulum
+            elif not upright:
                 self._drive("dampen", self._hanging_at_rest, "settle hanging")
+            else:
+                self._drive_for("dampen", FRESH_ESTIMATE_TIME)
+                if self._swinging(model):  # the swing-up pumps a calm pendulum, not a swinging one
+                    self._drive("dampen", self._hanging_at_rest, "settle hanging")
             if upright:
                 self._drive("swingup", self._held_upright, "swing up and hold upright")
             elif math.pi - abs(target_alpha) > NEAR_GOAL:
@@ -492,6 +496,13 @@ class Physics(MeasuredState, control.Physics):
         theta, alpha, dtheta, dalpha = self._estimate
         above_rest = model.energy(alpha, dtheta, dalpha) + 2.0 * model.gravity_torque
         return abs(dalpha) > WILD_SWING or above_rest > CALM_SWING_ENERGY * 2.0 * model.gravity_torque
+
+    def _drive_for(self, name: str, seconds: float) -> None:
+        """Run controller `name` for `seconds` (at least one sample)."""
+        controller = self._controllers[name]
+        controller.reset()
+        for _ in range(max(1, round(seconds * self._frequency))):
+            self._sample(controller(np.array(self._estimate)))
 
     def _drive(self, name: str, done: Callable[[tuple], bool], purpose: str, hold: float = HOLD_TIME) -> None:
         """Run controller `name` until `done(state)` has held for `hold` s (at least one sample)."""
