@@ -43,8 +43,8 @@ lasts), a stall error (`MotorStallError`; disabling the amplifier clears it), an
 encoder count that moved farther since the last sample than `max_encoder_speed`
 allows (`EncoderGlitchError`; the position reference is lost: close, put the Qube
 at its start position and open again), the arm farther than `arm_limit` from
-where it was at `open()` (`ArmLimitError`; raised again after `resume()` until
-the arm is back). A board that cannot be opened raises `BoardOpenError`. The
+its zero (`ArmLimitError`; raised again after `resume()` and at the next open
+until the arm is back). A board that cannot be opened raises `BoardOpenError`. The
 stall warning (digital input 1) is reported by `stall_warning`.
 """
 
@@ -240,7 +240,7 @@ class QuanserWrapper:
     (`qube_suite.hardware.plant`). realtime: the substitute follows the wall clock
     (default False, fast); a real board always does. watchdog_timeout (s): the
     board zeroes its outputs when no action reloads it for this long.
-    arm_limit (rad, or None): the largest arm angle from the start.
+    arm_limit (rad, or None): the largest arm angle from the arm encoder's zero.
     max_missed_samples (or None): the largest gap between two actions, in samples.
     max_encoder_speed (rad/s, or None): the fastest any encoder may turn between two
         samples; a larger jump of the count is a glitch.
@@ -643,7 +643,7 @@ class QuanserWrapper:
         angle = abs(conventions.arm_angle(int(self._encoders[self._arm_at])))
         if angle > self.arm_limit:
             self._stop(ArmLimitError(
-                f"the arm is {math.degrees(angle):.0f} degrees from where it was at open(), beyond "
+                f"the arm is {math.degrees(angle):.0f} degrees from its zero (the centre), beyond "
                 f"arm_limit = {math.degrees(self.arm_limit):.0f} degrees"))
 
 
