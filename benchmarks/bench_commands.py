@@ -26,6 +26,7 @@ import os
 import pathlib
 import re
 import shlex
+import signal
 import subprocess
 import sys
 import tempfile
@@ -43,6 +44,11 @@ def documented_commands() -> list[str]:
     return [line.strip() for line in block.splitlines() if line.startswith("qube-suite ")]
 
 
+def _exit_on_sigterm(signum, frame) -> None:
+    """SIGTERM unwinds like Ctrl-C, so that the spinner and the board server are stopped."""
+    raise SystemExit(128 + signum)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=20)
@@ -57,39 +63,49 @@ def main() -> None:
         cli = ["chrt", "-f", "10", *cli]
         single_threaded = {name: "1" for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS",
                                                   "MKL_NUM_THREADS")}
+    signal.signal(signal.SIGTERM, _exit_on_sigterm)
     spinner = subprocess.Popen([sys.executable, "-c", "while True: pass"])
-    cores = sorted(os.sched_getaffinity(0))
-    if len(cores) > 1:
-        os.sched_setaffinity(spinner.pid, {cores[-1]})
-    with tempfile.TemporaryDirectory() as directory:
-        server = BoardServer(directory)
-        environment = {**os.environ, **server.environment(), **single_threaded,
-                       "PYTHONPATH": os.pathsep.join([str(DOUBLES), os.environ.get("PYTHONPATH", "")])}
-        try:
-            print(f"{args.runs} runs of each command{' under chrt -f 10' if args.realtime else ''}; another "
-                  f"process spins on core {cores[-1]}; "
-                  f"load average {os.getloadavg()[0]:.1f} at the start")
-            for command in documented_commands():
-                successes, worst, errors, started = 0, 0.0, [], time.perf_counter()
-                for _ in range(args.runs):
-                    result = subprocess.run(cli + shlex.split(command)[1:], env=environment, cwd=directory,
-                                            capture_output=True, text=True)
-                    state = server.state()
-                    period = state["worst_period"] if state else 0.0
-                    worst = max(worst, period)
-                    ok = result.returncode == 0 and state["closed_cleanly"] and not state["amplifier_enabled"]
-                    successes += ok
-                    if not ok:
-                        errors.append(result.stderr.strip().splitlines()[-1] if result.stderr.strip() else
-                                      f"exit {result.returncode}")
-                print(f"\n{command}\n  {successes}/{args.runs} succeeded; worst sample period "
-                      f"{1e3 * worst:.1f} ms; {time.perf_counter() - started:.0f} s; load average "
-                      f"{os.getloadavg()[0]:.1f}")
-                for error in sorted(set(errors)):
-                    print(f"  failure: {error}")
-        finally:
-            server.stop()
-            spinner.kill()
+    try:
+        cores = sorted(os.sched_getaffinity(0))
+        if len(cores) > 1:
+            os.sched_setaffinity(spinner.pid, {cores[-1]})
+        with tempfile.TemporaryDirectory() as directory:
+            server = BoardServer(directory)
+            try:
+                run_commands(args, cli, single_threaded, server, directory, cores)
+            finally:
+                server.stop()
+    finally:
+        spinner.kill()
+        spinner.wait()
+
+
+def run_commands(args, cli: list[str], single_threaded: dict[str, str], server, directory: str,
+                 cores: list[int]) -> None:
+    """Run each documented command `args.runs` times on `server`'s board and print the counts."""
+    environment = {**os.environ, **server.environment(), **single_threaded,
+                   "PYTHONPATH": os.pathsep.join([str(DOUBLES), os.environ.get("PYTHONPATH", "")])}
+    print(f"{args.runs} runs of each command{' under chrt -f 10' if args.realtime else ''}; another "
+          f"process spins on core {cores[-1]}; "
+          f"load average {os.getloadavg()[0]:.1f} at the start")
+    for command in documented_commands():
+        successes, worst, errors, started = 0, 0.0, [], time.perf_counter()
+        for _ in range(args.runs):
+            result = subprocess.run(cli + shlex.split(command)[1:], env=environment, cwd=directory,
+                                    capture_output=True, text=True)
+            state = server.state()
+            period = state["worst_period"] if state else 0.0
+            worst = max(worst, period)
+            ok = result.returncode == 0 and state["closed_cleanly"] and not state["amplifier_enabled"]
+            successes += ok
+            if not ok:
+                errors.append(result.stderr.strip().splitlines()[-1] if result.stderr.strip() else
+                              f"exit {result.returncode}")
+        print(f"\n{command}\n  {successes}/{args.runs} succeeded; worst sample period "
+              f"{1e3 * worst:.1f} ms; {time.perf_counter() - started:.0f} s; load average "
+              f"{os.getloadavg()[0]:.1f}")
+        for error in sorted(set(errors)):
+            print(f"  failure: {error}")
 
 
 if __name__ == "__main__":

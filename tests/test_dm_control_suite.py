@@ -17,9 +17,6 @@ from dm_control.suite.wrappers import action_scale, pixels
 from qube_suite import suite
 from qube_suite.tasks.base import DEFAULT_VOLTAGE_LIMIT
 
-SUBSTITUTE_RESETS_REPEAT = pytest.mark.xfail(
-    strict=True, reason="the substitute starts these tasks from exactly the same state at consecutive resets")
-
 
 def all_tasks(marks=None):
     """Every (domain, task) of the suite as pytest params, with `marks(domain, task)` applied."""
@@ -146,13 +143,7 @@ def test_observations_dont_contain_constant_elements(domain, task):
         assert not np.any(np.all(stacked == stacked[0], axis=0)), f"{name!r} has constant elements"
 
 
-def substitute_repeats(domain, task):
-    if domain == "qube_hardware" and task in ("rotor", "swingup", "swingup_sparse"):
-        return (SUBSTITUTE_RESETS_REPEAT,)
-    return ()
-
-
-@pytest.mark.parametrize("domain, task", all_tasks(substitute_repeats))
+@pytest.mark.parametrize("domain, task", all_tasks())
 def test_initial_state_is_randomized(domain, task):
     env = suite.load(domain, task, task_kwargs={"random": 42})
     first, second = env.reset().observation, env.reset().observation

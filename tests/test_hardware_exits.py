@@ -15,7 +15,7 @@ import pytest
 from wall_clock import busy_core_fixture, child_environment, wall_clock_board_fixture  # noqa: F401
 
 import qube_suite  # noqa: F401  (registers the Gymnasium ids)
-from qube_suite import evaluation, suite
+from qube_suite import baselines, evaluation, suite
 from qube_suite.domains import qube_hardware
 from qube_suite.hardware import BoardIOError, QubeServo2
 
@@ -197,13 +197,6 @@ def test_an_abandoned_episode_is_idled_before_the_next_reset_drives(monkeypatch)
         board = driving(env)
         applied = []
         physics = env.physics
-        original = physics._prepare_controllers
-
-        def record():
-            applied.append((board.applied_voltage, board.amplifier_enabled))
-            original()
-
-        monkeypatch.setattr(physics, "_prepare_controllers", record)
         monkeypatch.setattr(physics.qube, "resume", lambda resume=physics.qube.resume: (
             applied.append((board.applied_voltage, board.amplifier_enabled)), resume()))
         env.reset()
@@ -324,20 +317,28 @@ def test_the_hardware_physics_has_the_digital_twins_model():
         assert {model.joint(i).name for i in range(model.njnt)} == {"arm", "pendulum"}
 
 
-def test_reset_controllers_are_built_before_the_board_opens(monkeypatch):
-    built_while_open = []
-    make = qube_hardware.baselines.make
+def test_reset_controllers_are_handed_in_before_the_board_opens(monkeypatch):
+    built = []
+    make = baselines.make
 
     def spy(name, **kwargs):
-        built_while_open.append(env.physics.qube.is_open)
+        built.append(name)
         return make(name, **kwargs)
 
+    monkeypatch.setattr(baselines, "make", spy)
     env = load()
-    monkeypatch.setattr(qube_hardware.baselines, "make", spy)
+    assert sorted(built) == sorted(qube_hardware.RESET_CONTROLLERS) and env.physics.qube.board is None
     with env:
         env.reset()
         env.reset()
-    assert built_while_open and not any(built_while_open)
+    assert len(built) == len(qube_hardware.RESET_CONTROLLERS)        # none built while the board runs
+
+
+def test_a_hardware_domain_without_reset_controllers_refuses_to_reset():
+    physics = qube_hardware.make_physics()
+    with pytest.raises(RuntimeError, match="reset controllers"):
+        physics.reset()
+    assert physics.qube.board is None                                  # nothing was opened
 
 
 def test_full_garbage_collections_wait_while_the_board_drives():

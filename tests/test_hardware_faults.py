@@ -220,18 +220,22 @@ def test_a_reset_controller_producing_nan_stops_the_motor(monkeypatch):
     with load("balance") as env:
         physics = env.physics
         physics.reset()
+        working = dict(physics._controllers)
+
         class Broken:
+            model = working["dampen"].model
+
             def reset(self):
                 pass
 
             def __call__(self, state):
                 return math.nan
 
-        monkeypatch.setattr(physics, "_controller", lambda name: Broken())
+        physics.set_reset_controllers({name: Broken() for name in working})
         with pytest.raises(ValueError, match="finite"):
             env.reset()
         assert_motor_off(physics.qube.board)
-        monkeypatch.undo()
+        physics.set_reset_controllers(working)
         assert run_episode(env, 0.0) >= 1
 
 

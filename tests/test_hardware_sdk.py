@@ -90,14 +90,10 @@ def test_an_interrupt_inside_idle_leaves_the_watchdog_guarding_the_outputs(monke
 @pytest.mark.slow
 def test_a_pendulum_still_swinging_at_open_keeps_the_boards_counts(wall_clock_board):
     """Run after run on one Qube: the next open finds the pendulum still swinging and must not zero
-    its encoder there (the board went on counting since it was zeroed at rest)."""
-    from quanser.hardware import HIL
-
+    its encoder there (the board went on counting since power-up)."""
     with QubeServo2(board="qube_servo2_usb") as qube:
-        assert qube.encoders_zeroed                                    # at rest: zeroed here
-    card = HIL("qube_servo2_usb", "0")
-    card._call("set_true_state", [0.0, math.pi - 0.6, 0.0, 0.0])     # the substitute's plant: a swing
-    card.close()
+        assert not qube.encoders_zeroed
+    wall_clock_board.set_true_state([0.0, math.pi - 0.6, 0.0, 0.0])  # a hand on the Qube: a swing
     with QubeServo2(board="qube_servo2_usb") as qube:
         assert not qube.encoders_zeroed
         swing = []
@@ -106,3 +102,15 @@ def test_a_pendulum_still_swinging_at_open_keeps_the_boards_counts(wall_clock_bo
             swing.append(counts[1])
     amplitude = max(abs(c) for c in swing) * 2 * math.pi / 2048
     assert 0.4 < amplitude < 0.62                                      # measured from hanging, as before
+
+
+@pytest.mark.slow
+def test_a_pendulum_resting_upright_at_open_reads_upright(wall_clock_board):
+    """A run that leaves the pendulum resting upright (its friction holds it a while) must not make
+    the next open take that rest for hanging."""
+    with QubeServo2(board="qube_servo2_usb") as qube:
+        qube.action([0.0])
+    wall_clock_board.set_true_state([0.0, 0.0, 0.0, 0.0])
+    with QubeServo2(board="qube_servo2_usb") as qube:
+        _, counts, _ = qube.action([0.0])
+    assert abs(abs(counts[1]) - 1024) <= 1                             # half a turn from hanging

@@ -18,7 +18,6 @@ from qube_suite.hardware import (
     WatchdogExpiredError,
     conventions,
 )
-from qube_suite.hardware.quanser import REST_CHECK_TIME
 
 
 def assert_motor_off(board):
@@ -38,17 +37,17 @@ def test_constructing_opens_nothing(fake_sdk):
         qube.action(0.0)
 
 
-def test_entering_zeroes_enables_and_starts_sampling():
+def test_entering_enables_and_starts_sampling_with_the_boards_counts():
     with QubeServo2() as qube:
         board = qube.board
         assert board.is_valid() and board.amplifier_enabled and board.applied_voltage == 0.0
-        start = board.time                                            # after 0.2 s of checking for rest
-        assert start == pytest.approx(REST_CHECK_TIME, abs=0.005) and qube.encoders_zeroed
+        start = board.time                                            # no rest check: no time passed
+        assert start == 0.0 and not qube.encoders_zeroed
         currents, encoders, others = qube.action(1.0)
-        assert encoders.tolist() == [0, 0] and board.time == pytest.approx(start + 0.004, abs=1e-9)
+        assert encoders.tolist() == [0, 0] and board.time == pytest.approx(start, abs=1e-9)  # sample 0
         assert board.applied_voltage == 1.0
         qube.action(1.0)
-        assert board.time == pytest.approx(start + 0.008, abs=1e-9)
+        assert board.time == pytest.approx(start + 0.004, abs=1e-9)
         for _ in range(25):
             _, encoders, _ = qube.action(1.0)
         assert encoders[0] > 0                                        # positive volts count the arm up

@@ -7,7 +7,7 @@ import pytest
 from conftest import requires_offscreen_gl
 
 from qube_suite import baselines, media, suite
-from qube_suite.domains import qube, qube_hardware
+from qube_suite.domains import qube
 
 pytestmark = requires_offscreen_gl
 
@@ -67,7 +67,7 @@ def test_led_pixels_are_red_at_low_reward_and_green_at_high_reward():
 
 @pytest.mark.slow
 def test_hardware_frames_show_the_measured_angles():
-    hardware = qube_hardware.make_physics()
+    hardware = suite.load("qube_hardware", "swingup").physics  # with its reset controllers
     renderer = media.FrameRenderer("front_oblique", width=160, height=120)
     try:
         hardware.reset()  # opens the substitute board: hanging at rest

@@ -17,37 +17,41 @@ What differs from the simulated domain, as on a real Qube:
   Quanser toolkits do: a voltage takes effect one sample after the observation
   it answers (`latency_steps` = 1, which `baselines.for_environment` passes to
   the controllers, as do the reset controllers; the simulated domain's is 0);
+* the board's encoder counts are kept across opens, as a real board keeps
+  counting from where it was powered up (`zero_encoders=True` zeroes them at the
+  first open instead, with the pendulum hanging at rest and the arm centred);
 * randomization effects on the state or the voltage (`set_sensor_model`,
   `set_actuator_model`: noise, delays, dead-zone, ...) apply to what tasks see and
   send; the reset controllers work on the plain estimate. Physical parameters and
   control-period jitter belong to the plant and cannot be randomized here;
-* starts are reached by reset controllers (`qube_suite.baselines`), with the LED
-  yellow while they drive: "settle hanging" (dampen), "swing up and hold"
-  (swing-up with LQR balance) for starts near upright, and for other starts
-  (dampen's arbitrary swing) settle, then pump energy until the pendulum swings
-  with the energy of the requested start. A start the controllers cannot reach
-  within `reset_timeout` raises `ResetError`;
+* starts are reached by reset controllers, with the LED yellow while they
+  drive: "settle hanging" (dampen), "swing up and hold" (swing-up with LQR
+  balance) for starts near upright, and for other starts (dampen's arbitrary
+  swing) settle, then pump energy until the pendulum swings with the energy of
+  the requested start. A domain never imports controllers: `suite.load` hands it
+  `dampen` and `swingup` (`set_reset_controllers`), designed for the Qube's own
+  parameters (`reset_controller_settings()`), before the board samples. A start
+  the controllers cannot reach within `reset_timeout` raises `ResetError`;
 * anything that raises during a step or a reset (a safety stop, a board error,
   Ctrl-C, a failing controller) first stops the motor: the board idles (0 V,
   amplifier disabled) and the next reset drives again, or, after an encoder
   glitch, which loses the position reference, the board is closed and the next
-  reset opens it afresh (zeroing the encoders where the Qube is then).
+  reset opens it afresh, zeroing the encoders where the Qube then rests.
 """
 
 from __future__ import annotations
 
 import gc
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 from dm_control.rl import control
 
-from qube_suite import baselines
+from qube_suite import parameters as params
 from qube_suite.angles import wrap_angle
 from qube_suite.arguments import keywords_of
-from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.domains.interface import MeasuredState
 from qube_suite.hardware import conventions
 from qube_suite.hardware.errors import EncoderGlitchError, HardwareError
@@ -56,7 +60,10 @@ from qube_suite.hardware.plant import BOARD_MOTORS
 from qube_suite.hardware.quanser import DEVICES, SIMULATED, QuanserWrapper
 
 RESET_CONTROLLERS = ("dampen", "swingup")
-"""The controllers that reach the episodes' starts; built before the board samples."""
+"""The controllers that reach the episodes' starts (`qube_suite.baselines` names): handed to the domain
+by `suite.load` before the board samples. Each is called with the state estimate [theta, alpha,
+dtheta, dalpha] and returns volts, has `reset()` and `close()`, and its `model.energy(alpha, dtheta,
+dalpha)` gives the energy (J) the reset pumps the swing to (`model.gravity_torque`: mp g l, N m)."""
 
 RESET_LED = (1.0, 1.0, 0.0)
 """Yellow: a reset controller is driving."""
@@ -75,17 +82,30 @@ WILD_SWING = 3.0
 """Pendulum speed (rad/s) above which an upright start first settles the pendulum hanging: the
 swing-up catches a pendulum that starts near rest, not one swinging wildly."""
 
+CALM_SWING_ENERGY = 0.25
+"""An upright start also settles the pendulum hanging first when it swings with more than this
+fraction of the swing-up energy (2 mp g l) above hanging at rest, however slowly it moves at the moment
+(a swing seen at its turning point is slow): the swing-up pumps a calm pendulum, not a swinging one.
+A quarter is a swing of about 60 degrees from hanging."""
+
+FRESH_ESTIMATE_TIME = 0.1
+"""Seconds that dampen drives before a reset without the encoder check decides whether the pendulum
+swings too much for the swing-up: five time constants of the velocity filter, restarted when the board
+woke, so that the decision is made on the Qube's present state; meanwhile dampen already brakes the
+arm (at 0 V an arm still turning fast from the last episode could coast past the arm limit)."""
+
 HOLD_TIME = 0.5
 """A reset is done when its condition has held this long (s)."""
 
 ARM_CENTRE_TOLERANCE = math.radians(5.0)
-"""With the encoder check on, a hanging reset also centres the arm to within 5 degrees of the zero
-set at open() (the reset controllers leave it within about 1 degree on the substitute)."""
+"""With the encoder check on, every reset first centres the arm to within 5 degrees of its zero (the
+reset controllers leave it within about 1 degree on the substitute; the cable's spring and the arm's
+friction hold it there)."""
 
-PENDULUM_REST_TOLERANCE = 2
-"""Encoder counts: with the encoder check on, the pendulum hanging at rest must read pi to within two
-counts: its Coulomb friction stops it within a count of hanging, and the zero was itself set at such
-a rest, within a count of hanging. More means its zero is lost."""
+PENDULUM_REST_TOLERANCE = 1
+"""Encoder counts: with the encoder check on, the pendulum hanging at rest must read pi to within one
+count (the bench's sway lets its Coulomb friction stop it within a count of hanging, where a count may
+flicker). More means its zero is lost."""
 
 
 class _FullCollectionsHeld:
@@ -147,10 +167,18 @@ class Physics(MeasuredState, control.Physics):
         reset_voltage_limit: largest voltage of the reset controllers (V).
         reset_timeout: longest a reset may take (s).
         identifier: the board's number.
-        check_encoders: at each reset that settles the pendulum hanging, centre the arm to within
+        check_encoders: at every reset, first settle the pendulum hanging, centre the arm to within
             `ARM_CENTRE_TOLERANCE` (5 degrees) and check that the pendulum, hanging at rest, reads
             pi to within `PENDULUM_REST_TOLERANCE` (one count); else raise `EncoderCheckError`
             (`ResetError` if the arm cannot be centred). Default True.
+        zero_encoders: zero the encoders at the board's first open, where the Qube rests (pendulum
+            hanging, arm centred); default False: keep the board's counts, which a board counts
+            from where the Qube was at power-up.
+        parameters: physical parameters of this Qube by long name, or a calibration (file or
+            object): what the reset controllers and `design_parameters()` use, on top of the
+            device's motor data. Default: the nominal model with the device's motor.
+        reset_controllers: `RESET_CONTROLLERS` by name, made for `reset_controller_settings()`
+            (`suite.load` hands them in; `set_reset_controllers` later). Required to reset.
     """
 
     latency_steps = 1
@@ -164,14 +192,20 @@ class Physics(MeasuredState, control.Physics):
     physics_error = None
     """Always None: faults on hardware raise instead (see the safety table in docs/safety.md)."""
 
+    reset_controller_names = RESET_CONTROLLERS
+    """The controllers `set_reset_controllers` needs (see `RESET_CONTROLLERS`)."""
+
     def __init__(self, control_frequency: float = 250.0, board: str = SIMULATED,
                  plant: dict[str, float] | None = None, realtime: bool | None = None,
                  max_voltage: float = 10.0, reset_voltage_limit: float = DEFAULT_RESET_VOLTAGE_LIMIT,
                  reset_timeout: float = DEFAULT_RESET_TIMEOUT, identifier: str = "0",
-                 device: str | None = None, check_encoders: bool = True):
-        if not isinstance(check_encoders, bool):
-            raise TypeError(f"check_encoders must be True or False, got {check_encoders!r}")
+                 device: str | None = None, check_encoders: bool = True, zero_encoders: bool = False,
+                 parameters: Any = None, reset_controllers: Mapping[str, Any] | None = None):
+        for name, flag in (("check_encoders", check_encoders), ("zero_encoders", zero_encoders)):
+            if not isinstance(flag, bool):
+                raise TypeError(f"{name} must be True or False, got {flag!r}")
         self._check_encoders = check_encoders
+        self._zero_at_open = zero_encoders
         if device is None:
             device = next((name for name, d in DEVICES.items() if d.board_type == board), "qube_servo2")
         if device not in DEVICES:
@@ -189,16 +223,21 @@ class Physics(MeasuredState, control.Physics):
         self.qube = QuanserWrapper(DEVICES[device], board, identifier, frequency=control_frequency,
                                    max_voltage=max_voltage, plant=plant, realtime=realtime)
         self._motor = dict(BOARD_MOTORS[DEVICES[device].board_type])
+        overrides = params.values_of(parameters)
+        params.resolve(overrides)  # a misspelt name or a bad value fails here
+        self._design = {**self._motor, **overrides}
         self._frequency = float(control_frequency)
         self._estimator = StateEstimator(control_frequency)
         self._reset_voltage_limit = float(reset_voltage_limit)
         self._reset_timeout = float(reset_timeout)
-        self._controllers: dict[str, baselines.Controller] = {}
-        self._model = RigidBodyModel.from_parameters(self._motor)
+        self._controllers: dict[str, Any] = {}
+        if reset_controllers is not None:
+            self.set_reset_controllers(reset_controllers)
         self._closed = False
         self._voltage = 0.0
         self._applied = 0.0
         self._led: tuple[float, float, float] = RESET_LED
+        self._led_shown: tuple[float, float, float] | None = None  # on the board; None: unknown
         self._estimate: tuple[float, float, float, float] = (0.0, math.pi, 0.0, 0.0)
         self._measured = self._estimate
         self._sensor_model = None
@@ -291,18 +330,23 @@ class Physics(MeasuredState, control.Physics):
         """
         if self._closed:
             raise RuntimeError("this hardware environment was closed and its board released; make a new one")
-        self._prepare_controllers()
+        missing = [name for name in RESET_CONTROLLERS if name not in self._controllers]
+        if missing:
+            raise RuntimeError(f"the hardware domain has no reset controllers {missing}: make it through "
+                               "suite.load, or hand them in with set_reset_controllers()")
         if self.qube.is_open and not self.qube.is_idle:
             self.end_episode()
         FULL_COLLECTIONS.hold(self)
         try:
             if not self.qube.is_open:
-                self.qube.open()
-                self._estimator.reset()
-                self._sample(0.0)
-                self._measured = self._estimate
+                self.qube.open(zero_encoders=self._zero_at_open)
+                self._zero_at_open = False  # zeroed once: from now on the board's counts hold
             else:
                 self.qube.resume()
+            self._led_shown = None
+            self._estimator.reset()  # the Qube moved on while the board idled: estimate it afresh
+            self._sample(0.0)
+            self._measured = self._estimate
         except BaseException as error:
             self._stop_after(error)
             raise
@@ -314,21 +358,26 @@ class Physics(MeasuredState, control.Physics):
     def reset_to(self, state: Sequence[float]) -> None:
         """Drive the Qube to the episode's start with the reset controllers (see the module docstring)."""
         target_alpha = wrap_angle(float(state[1]))
+        model = self._controllers["dampen"].model
         self._led = RESET_LED
         try:
-            if abs(target_alpha) <= NEAR_GOAL:
-                if abs(self._estimate[3]) > WILD_SWING:  # e.g. still falling from the last run: calm it first
-                    self._drive("dampen", self._hanging_at_rest, "settle hanging")
-                self._drive("swingup", self._held_upright, "swing up and hold upright")
-            else:
+            upright = abs(target_alpha) <= NEAR_GOAL
+            if self._check_encoders:
                 self._drive("dampen", self._hanging_at_rest, "settle hanging")
-                if self._check_encoders:
-                    self._drive("dampen", self._centred_at_rest, "centre the arm")
-                    self._check_pendulum_zero()
-                if math.pi - abs(target_alpha) > NEAR_GOAL:
-                    energy = self._model.energy(target_alpha, float(state[2]), float(state[3]))
-                    self._drive("swingup", lambda s: self._model.energy(s[1], s[2], s[3]) >= energy,
-                                "pump the swing", hold=0.0)
+                self._drive("dampen", self._centred_at_rest, "centre the arm")
+                self._check_pendulum_zero()
+            elif not upright:
+                self._drive("dampen", self._hanging_at_rest, "settle hanging")
+            else:
+                self._drive_for("dampen", FRESH_ESTIMATE_TIME)
+                if self._swinging(model):  # the swing-up pumps a calm pendulum, not a swinging one
+                    self._drive("dampen", self._hanging_at_rest, "settle hanging")
+            if upright:
+                self._drive("swingup", self._held_upright, "swing up and hold upright")
+            elif math.pi - abs(target_alpha) > NEAR_GOAL:
+                energy = model.energy(target_alpha, float(state[2]), float(state[3]))
+                self._drive("swingup", lambda s: model.energy(s[1], s[2], s[3]) >= energy,
+                            "pump the swing", hold=0.0)
         except BaseException as error:
             self._stop_after(error)
             raise
@@ -357,13 +406,34 @@ class Physics(MeasuredState, control.Physics):
         if self._twin is None:
             from qube_suite.domains import qube
 
-            self._twin = qube.make_physics(self._frequency, self._motor)
+            self._twin = qube.make_physics(self._frequency, self._design)
         return self._twin
 
     def design_parameters(self) -> dict[str, float]:
-        """Physical parameters (long names) that differ from the nominal Qube-Servo 2 for this
-        device (a Qube-Servo 3's motor): what controllers for it are designed with."""
-        return dict(self._motor)
+        """Physical parameters (long names) that differ from the nominal Qube-Servo 2 for this Qube
+        (the device's motor, then the `parameters` given): what controllers for it are designed with."""
+        return dict(self._design)
+
+    def reset_controller_settings(self) -> dict[str, Any]:
+        """Keyword arguments to build each of `RESET_CONTROLLERS` with (`baselines.make(name, **...)`):
+        the control frequency, the reset voltage limit, the board's latency and `design_parameters()`."""
+        return {"control_frequency": self._frequency, "voltage_limit": self._reset_voltage_limit,
+                "latency_steps": self.latency_steps, "parameters": self.design_parameters()}
+
+    def set_reset_controllers(self, controllers: Mapping[str, Any]) -> None:
+        """Hand in the controllers that reach the episodes' starts: `RESET_CONTROLLERS` by name, made for
+        `reset_controller_settings()` (see `RESET_CONTROLLERS` for what each must offer). Building
+        them takes longer than a sample: they must be ready before the board samples."""
+        missing = [name for name in RESET_CONTROLLERS if name not in controllers]
+        if missing:
+            raise ValueError(f"reset controllers {missing} missing; needed: {', '.join(RESET_CONTROLLERS)}")
+        for name in RESET_CONTROLLERS:
+            controller = controllers[name]
+            if not (callable(controller) and callable(getattr(controller, "reset", None))
+                    and callable(getattr(getattr(controller, "model", None), "energy", None))):
+                raise TypeError(f"reset controller {name!r} must be callable with reset() and "
+                                f"model.energy(), got {controller!r}")
+        self._controllers = {name: controllers[name] for name in RESET_CONTROLLERS}
 
     @property
     def model(self):
@@ -399,6 +469,7 @@ class Physics(MeasuredState, control.Physics):
             if not qube.is_open:
                 return
             if isinstance(error, EncoderGlitchError):
+                self._zero_at_open = True  # the position reference is lost
                 qube.close()
             elif not qube.is_idle:
                 try:
@@ -411,29 +482,31 @@ class Physics(MeasuredState, control.Physics):
 
     def _sample(self, volts: float) -> None:
         self.currents, self.encoders, self.others = self.qube.action(
-            [conventions.board_voltage(volts)], led=self._led)
+            [conventions.board_voltage(volts)], led=None if self._led == self._led_shown else self._led)
+        self._led_shown = self._led  # written only when it changes: one board call less per sample
         limit = self.qube.max_voltage
         self._applied = -limit if volts < -limit else limit if volts > limit else volts
         theta, alpha, dtheta, dalpha = self._estimator(self.encoders).tolist()
         self._estimate = (theta, alpha, dtheta, dalpha)
         self._samples += 1
 
-    def _prepare_controllers(self) -> None:
-        """Build the reset controllers (designing them takes longer than a sample) while the board
-        is closed or idle."""
-        for name in RESET_CONTROLLERS:
-            if name not in self._controllers:
-                self._controllers[name] = baselines.make(name, control_frequency=self._frequency,
-                                                         voltage_limit=self._reset_voltage_limit,
-                                                         latency_steps=self.latency_steps,
-                                                         parameters=self._motor)
+    def _swinging(self, model) -> bool:
+        """True if the pendulum moves fast or swings with more than `CALM_SWING_ENERGY` of the swing-up
+        energy above hanging at rest (by the reset controllers' `model`)."""
+        theta, alpha, dtheta, dalpha = self._estimate
+        above_rest = model.energy(alpha, dtheta, dalpha) + 2.0 * model.gravity_torque
+        return abs(dalpha) > WILD_SWING or above_rest > CALM_SWING_ENERGY * 2.0 * model.gravity_torque
 
-    def _controller(self, name: str) -> baselines.Controller:
-        return self._controllers[name]
+    def _drive_for(self, name: str, seconds: float) -> None:
+        """Run controller `name` for `seconds` (at least one sample)."""
+        controller = self._controllers[name]
+        controller.reset()
+        for _ in range(max(1, round(seconds * self._frequency))):
+            self._sample(controller(np.array(self._estimate)))
 
     def _drive(self, name: str, done: Callable[[tuple], bool], purpose: str, hold: float = HOLD_TIME) -> None:
         """Run controller `name` until `done(state)` has held for `hold` s (at least one sample)."""
-        controller = self._controller(name)
+        controller = self._controllers[name]
         controller.reset()
         needed = max(1, round(hold * self._frequency))
         held = 0
@@ -458,8 +531,8 @@ class Physics(MeasuredState, control.Physics):
             raise EncoderCheckError(
                 f"the pendulum hangs at rest but its encoder reads {counts:.0f} counts from hanging (at most "
                 f"{PENDULUM_REST_TOLERANCE} allowed): its zero is lost. Close the environment, let the "
-                "pendulum hang still, centre the arm and make a new one (opening zeroes the encoders); "
-                "domain_kwargs={'check_encoders': False} turns this check off")
+                "pendulum hang still, centre the arm and make a new one with domain_kwargs={'zero_encoders': "
+                "True}; domain_kwargs={'check_encoders': False} turns this check off")
 
     @staticmethod
     def _centred_at_rest(state: tuple) -> bool:
@@ -474,7 +547,7 @@ class Physics(MeasuredState, control.Physics):
                 and abs(dalpha) < 0.3 and abs(dtheta) < 0.3)
 
 
-DOMAIN_KWARGS = keywords_of(Physics, skip=("control_frequency",))
+DOMAIN_KWARGS = keywords_of(Physics, skip=("control_frequency", "reset_controllers"))
 """Keys `suite.load`'s `domain_kwargs` may hold for this domain: `Physics`'s options."""
 
 

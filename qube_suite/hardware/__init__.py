@@ -20,6 +20,7 @@ from qube_suite.hardware.errors import (
     HardwareError,
     MissedSamplesError,
     MotorStallError,
+    NotAtRestError,
     QuanserSDKNotFoundError,
     SafetyStopError,
     WatchdogExpiredError,
@@ -39,6 +40,7 @@ __all__ = [
     "DEVICES", "QUBE_SERVO_2", "QUBE_SERVO_3", "AmplifierFaultError", "ArmLimitError", "BoardIOError",
     "BoardOpenError", "Device",
     "EncoderGlitchError", "HardwareError",
-    "MissedSamplesError", "MotorStallError", "QuanserSDKNotFoundError", "QuanserWrapper", "QubeServo2",
+    "MissedSamplesError", "MotorStallError", "NotAtRestError", "QuanserSDKNotFoundError", "QuanserWrapper",
+    "QubeServo2",
     "QubeServo3", "SafetyStopError", "StateEstimator", "VelocityFilter", "WatchdogExpiredError",
 ]

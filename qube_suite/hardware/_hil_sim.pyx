@@ -26,7 +26,10 @@ pendulum of `tests/reference_dynamics.py`, with state [theta, alpha, dtheta,
 dalpha, i] in the package's signs, plus: the motor's electrical ODE
 L di/dt = V - R i - km dtheta (torque kt i); the amplifier's voltage saturation
 and current limit (at the limit it holds the current); the cable spring
--kc theta on the arm; Coulomb friction on both joints; stall detection (a stall
+-kc theta on the arm; Coulomb friction on both joints; the bench's sway as a
+random torque on the pendulum (`bench_vibration` RMS, a Gauss-Markov process with
+correlation time `vibration_time`, from the board's random stream seeded by
+`seed`: the same seed, the same sway); stall detection (a stall
 lasting `stall_time` disables the amplifier until its enable line is toggled).
 A disabled amplifier leaves the motor open-circuit: no current, no torque.
 
@@ -85,7 +88,7 @@ import time
 
 import numpy as np
 
-from libc.math cimport cos, fabs, floor, sin
+from libc.math cimport cos, exp, fabs, floor, log, sin, sqrt
 from libc.stdlib cimport free, malloc
 
 from qube_suite.angles import wrap_angle
@@ -199,11 +202,14 @@ cdef struct Params:
     double M22          # J_h + mp lc^2: pendulum inertia about its pivot
     double mgl          # mp g lc
     double Dr, Dp, Fr, Fp, kc
+    double vibration, vibration_time   # the bench's sway on the pendulum: RMS torque (N m), correlation (s)
     double v_limit, i_limit, stall_v, stall_w, stall_t
 
 cdef struct Plant:
     double x[5]         # theta, alpha (unwrapped), dtheta, dalpha, motor current; package signs
     double t            # simulated time (s)
+    double sway         # the bench's torque on the pendulum now (N m)
+    unsigned long long random_state     # splitmix64 state of the board's random stream
     double stall_timer
     bint stall_detected, stall_error, fault, arm_blocked, diverged
 
@@ -242,8 +248,27 @@ cdef inline double _clamp(double value, double limit) noexcept nogil:
     return value
 
 
-cdef inline void _derivative(const Params* p, const double* x, double v, bint on, double* dx) noexcept nogil:
-    """d/dt of [theta, alpha, dtheta, dalpha, i] with package voltage `v` and the amplifier `on`."""
+cdef inline double _uniform(unsigned long long* state) noexcept nogil:
+    """A number in (0, 1) from the splitmix64 stream `state` (Steele, Lea and Flood, OOPSLA 2014)."""
+    cdef unsigned long long z
+    state[0] += 0x9E3779B97F4A7C15ULL
+    z = state[0]
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL
+    z = z ^ (z >> 31)
+    return ((z >> 11) + 0.5) * (1.0 / 9007199254740992.0)
+
+
+cdef inline double _normal(unsigned long long* state) noexcept nogil:
+    """A standard normal number (Box-Muller) from the stream `state`."""
+    cdef double u1 = _uniform(state), u2 = _uniform(state)
+    return sqrt(-2.0 * log(u1)) * cos(2.0 * PI * u2)
+
+
+cdef inline void _derivative(const Params* p, const double* x, double v, bint on, double sway,
+                             double* dx) noexcept nogil:
+    """d/dt of [theta, alpha, dtheta, dalpha, i] with package voltage `v`, the amplifier `on` and the
+    bench's torque `sway` on the pendulum."""
     cdef double i, di, s, c, m11, m12, k, f1, f2, det
     if not on:
         i = 0.0
@@ -262,7 +287,7 @@ cdef inline void _derivative(const Params* p, const double* x, double v, bint on
     m12 = -p.mLl * c
     k = p.K
     f1 = p.kt * i - p.Dr * x[2] - p.kc * x[0] - 2.0 * k * s * c * x[2] * x[3] - p.mLl * s * x[3] * x[3]
-    f2 = -p.Dp * x[3] + k * s * c * x[2] * x[2] + p.mgl * s
+    f2 = -p.Dp * x[3] + k * s * c * x[2] * x[2] + p.mgl * s + sway
     det = m11 * p.M22 - m12 * m12
     dx[0] = x[2]
     dx[1] = x[3]
@@ -361,19 +386,25 @@ cdef void _substep(const Params* p, Plant* s, double applied, bint on, double h)
     cdef double y[5]
     cdef double start[5]
     cdef double v = ARM_SIGN * applied
+    cdef double decay
     cdef int j
     for j in range(5):
         start[j] = s.x[j]
-    _derivative(p, s.x, v, on, k1)
+    if p.vibration > 0.0:           # exact discretisation of the Gauss-Markov sway over h
+        decay = exp(-h / p.vibration_time)
+        s.sway = decay * s.sway + p.vibration * sqrt(1.0 - decay * decay) * _normal(&s.random_state)
+    else:
+        s.sway = 0.0
+    _derivative(p, s.x, v, on, s.sway, k1)
     for j in range(5):
         y[j] = s.x[j] + 0.5 * h * k1[j]
-    _derivative(p, y, v, on, k2)
+    _derivative(p, y, v, on, s.sway, k2)
     for j in range(5):
         y[j] = s.x[j] + 0.5 * h * k2[j]
-    _derivative(p, y, v, on, k3)
+    _derivative(p, y, v, on, s.sway, k3)
     for j in range(5):
         y[j] = s.x[j] + h * k3[j]
-    _derivative(p, y, v, on, k4)
+    _derivative(p, y, v, on, s.sway, k4)
     for j in range(5):
         s.x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
     _coulomb_friction(p, s.x, start, h)
@@ -415,10 +446,11 @@ cdef class Task:
 cdef class HIL:
     """A Qube-Servo board with a simulated Qube: Quanser's HIL API, plus inspection for tests.
 
-    HIL(card_type=None, card_identifier="0", *, plant=None, realtime=False): like
+    HIL(card_type=None, card_identifier="0", *, plant=None, realtime=False, seed=0): like
     Quanser's HIL, opens the board when `card_type` is given. `plant` overrides
     plant parameters by long name (`qube_suite.hardware.plant`); `realtime=True`
-    paces tasks by the wall clock.
+    paces tasks by the wall clock; `seed` (a non-negative integer) seeds the random
+    stream of the bench's sway.
     """
 
     INFINITE = -1
@@ -439,8 +471,12 @@ cdef class HIL:
     def __cinit__(self):
         self.smp.ring = NULL
 
-    def __init__(self, card_type=None, card_identifier="0", *, plant=None, realtime=False):
+    def __init__(self, card_type=None, card_identifier="0", *, plant=None, realtime=False, seed=0):
         plant_parameters("qube_servo2_usb", plant)     # unknown names fail here, before opening
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**64:
+            raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
+        self.s.random_state = int(seed)
+        self.s.sway = 0.0
         self.plant_overrides = dict(plant or {})
         self.realtime_ = bool(realtime)
         self.lock = threading.Lock()
@@ -922,6 +958,7 @@ cdef class HIL:
         self.p.Dr, self.p.Dp = values["arm_damping"], values["pendulum_damping"]
         self.p.Fr, self.p.Fp = values["arm_friction"], values["pendulum_friction"]
         self.p.kc = values["cable_stiffness"]
+        self.p.vibration, self.p.vibration_time = values["bench_vibration"], values["vibration_time"]
         self.p.v_limit, self.p.i_limit = values["amplifier_voltage_limit"], values["current_limit"]
         self.p.stall_v, self.p.stall_w, self.p.stall_t = (values["stall_voltage"], values["stall_speed"],
                                                           values["stall_time"])

@@ -24,6 +24,10 @@ class BoardOpenError(HardwareError):
     """The board could not be opened (not connected, not powered, or in use); nothing was driven."""
 
 
+class NotAtRestError(HardwareError):
+    """The encoders were to be zeroed at open, but the Qube was moving; the board was closed again."""
+
+
 class BoardIOError(HardwareError):
     """The board reported an error while it was set up or read (Quanser's error text in the message);
     the wrapper stopped the motor first, as for a safety stop."""

@@ -38,6 +38,17 @@ Qube-Servo 2 gives them.
   below 4 % of the no-load speed at 5 V (119 rad/s); 0 disables stall detection.
 - `stall_time` = 3 s: a stall warning asserted for about 3 s becomes a stall
   error and the amplifier disables itself (QUARC documentation, digital input 2).
+- `bench_vibration` = 4.0e-5 N m (*estimate*) with `vibration_time` = 0.02 s: the
+  bench the Qube stands on is never still (people walking, fans, a computer). Its
+  horizontal sway acts on the pendulum as a torque mp lc a; 4e-5 N m RMS is the
+  torque of a 0.026 m/s^2 (2.6 milli-g) RMS sway, modelled as a Gauss-Markov
+  (Ornstein-Uhlenbeck) process with a 20 ms correlation time (sway below about
+  8 Hz), drawn from the board's seeded random stream. It is below the pendulum's
+  Coulomb friction most of the time, so a pendulum hanging at rest moves less than
+  an encoder count, but it exceeds it often enough that a pendulum left upright
+  at 0 V falls within a few seconds (0.95 to 5.3 s for seeds 0 to 7), as a real one
+  does, instead of resting on its friction inside a count of upright. Its action
+  on the arm is far below the arm's friction and is left out. 0 turns it off.
 
 For `qube_servo3_usb` the motor rows are those of the Qube-Servo 3 user manual
 (table 2.2): Rm = 7.5 ohm, kt = km = 0.0422, Jm = 1.4e-6 kg m^2, Lm = 1.15 mH.
@@ -79,6 +90,16 @@ AMPLIFIER_PARAMETERS: types.MappingProxyType[str, PlantParameter] = types.Mappin
     {p.name: p for p in _AMPLIFIER})
 """The amplifier's parameters by long name."""
 
+_BENCH = (
+    PlantParameter("bench_vibration", 4.0e-5, "N m", "RMS torque of the bench's sway on the pendulum "
+                   "(0 turns it off)"),
+    PlantParameter("vibration_time", 0.02, "s", "correlation time of the bench's sway"),
+)
+
+BENCH_PARAMETERS: types.MappingProxyType[str, PlantParameter] = types.MappingProxyType(
+    {p.name: p for p in _BENCH})
+"""The bench's parameters by long name: what the Qube stands on."""
+
 HARDWARE_DEFAULTS: types.MappingProxyType[str, float] = types.MappingProxyType({
     "arm_friction": 1.0e-3,
     "pendulum_friction": 5.0e-5,
@@ -95,7 +116,7 @@ BOARD_MOTORS: types.MappingProxyType[str, Mapping[str, float]] = types.MappingPr
 """Motor data that differ from the nominal (Qube-Servo 2) table, by board type."""
 
 _ZERO_ALLOWED = frozenset({"arm_damping", "pendulum_damping", "arm_friction", "pendulum_friction",
-                           "cable_stiffness", "motor_inductance", "stall_speed"})
+                           "cable_stiffness", "motor_inductance", "stall_speed", "bench_vibration"})
 
 
 def plant_parameters(board_type: str = "qube_servo2_usb",
@@ -110,7 +131,7 @@ def plant_parameters(board_type: str = "qube_servo2_usb",
     values = dict(parameters.NOMINAL)
     values.update(HARDWARE_DEFAULTS)
     values.update(BOARD_MOTORS[board_type])
-    values.update({p.name: p.default for p in _AMPLIFIER})
+    values.update({p.name: p.default for p in _AMPLIFIER + _BENCH})
     for name, value in (overrides or {}).items():
         if name not in values:
             raise ValueError(f"unknown plant parameter {name!r}; valid names: {', '.join(values)}")

@@ -10,12 +10,18 @@ API (`quanser.hardware`, imported only then). Nothing is opened before
 `__enter__`/`open()`.
 
 Entering clears a watchdog left expired by an earlier run, writes 0 V with the
-amplifier off, starts a reader task at `frequency`, zeroes the encoders if the
-Qube is at rest (no count changes for 0.2 s; a pendulum still swinging from an
-earlier run keeps the counts the board went on counting since they were last
-zeroed, which stay valid while the board is powered), sets the watchdog to zero
-the voltage and disable the amplifier on expiry, enables the amplifier and starts
-the watchdog. `action(voltages, led=None)`
+amplifier off, starts a reader task at `frequency`, sets the watchdog to zero the
+voltage and disable the amplifier on expiry, enables the amplifier and starts the
+watchdog. It keeps the board's encoder counts: a board counts from 0 where the
+Qube was at power-up and goes on counting while it is powered, across opens and
+closes (QUARC's own models set encoder counts only by an explicit
+`hil_set_encoder_counts`, which their HIL Initialize block makes at model start
+when its "set initial encoder counts" option is chosen), so a Qube powered up
+with the pendulum hanging at rest and the arm centred is zeroed for as long as it
+stays powered, whatever earlier runs left it doing. `zero_encoders=True` zeroes
+them at open instead, where the Qube is then (it must be at rest: no count moving
+by more than one over 0.2 s, else `NotAtRestError`); `reset_encoders()` at any
+time. `action(voltages, led=None)`
 waits for the next sample, reloads the watchdog, checks safety, writes the
 voltages and returns (currents in A, encoder counts, other inputs) as the board
 reports them: raw board units and signs (`conventions.py` maps them to the
@@ -37,8 +43,8 @@ lasts), a stall error (`MotorStallError`; disabling the amplifier clears it), an
 encoder count that moved farther since the last sample than `max_encoder_speed`
 allows (`EncoderGlitchError`; the position reference is lost: close, put the Qube
 at its start position and open again), the arm farther than `arm_limit` from
-where it was at `open()` (`ArmLimitError`; raised again after `resume()` until
-the arm is back). A board that cannot be opened raises `BoardOpenError`. The
+its zero (`ArmLimitError`; raised again after `resume()` and at the next open
+until the arm is back). A board that cannot be opened raises `BoardOpenError`. The
 stall warning (digital input 1) is reported by `stall_warning`.
 """
 
@@ -63,6 +69,7 @@ from qube_suite.hardware.errors import (
     HardwareError,
     MissedSamplesError,
     MotorStallError,
+    NotAtRestError,
     QuanserSDKNotFoundError,
     WatchdogExpiredError,
 )
@@ -129,8 +136,8 @@ MAX_FREQUENCY = 10000.0
 """Highest sample rate (Hz) the wrapper accepts: the substitute's plant integrates at 10 kHz."""
 
 REST_CHECK_TIME = 0.2
-"""At open(), the encoders are zeroed only if no count changed over this long (s): a pendulum still
-swinging from an earlier run keeps the counts the board went on counting since they were zeroed."""
+"""With zero_encoders=True, open() zeroes the encoders only after no count moved by more than one from
+where it was over this long (s): a Qube at rest (a count may flicker at its edge), not one moving."""
 
 AMPLIFIER_RANGE = 15.0
 """Largest `max_voltage` (V): the Qube's amplifier range, +-15 V (see `plant.py`)."""
@@ -210,6 +217,10 @@ class _Handle:
             attempt(board.write_digital, c["digital_outputs"], len(c["digital_outputs"]),
                     np.zeros(len(c["digital_outputs"]), dtype=np.int8))
             attempt(board.write_other, c["led_outputs"], len(c["led_outputs"]), np.array(LED_OFF_STATE))
+            if errors and attempt(board.watchdog_is_expired):
+                # It expired between the check and the writes, which it then refused: the outputs are
+                # at their expiration states (0 V, amplifier off), which is what the writes were for.
+                errors = [error for error in errors if isinstance(error, (KeyboardInterrupt, SystemExit))]
         attempt(board.watchdog_stop)  # only after the outputs are zeroed
         if task is not None:
             attempt(board.task_stop, task)
@@ -229,17 +240,20 @@ class QuanserWrapper:
     (`qube_suite.hardware.plant`). realtime: the substitute follows the wall clock
     (default False, fast); a real board always does. watchdog_timeout (s): the
     board zeroes its outputs when no action reloads it for this long.
-    arm_limit (rad, or None): the largest arm angle from the start.
+    arm_limit (rad, or None): the largest arm angle from the arm encoder's zero.
     max_missed_samples (or None): the largest gap between two actions, in samples.
     max_encoder_speed (rad/s, or None): the fastest any encoder may turn between two
         samples; a larger jump of the count is a glitch.
+    zero_encoders: zero the encoders at every open() where the Qube rests; default False:
+        keep the board's counts (see the module docstring).
     """
 
     def __init__(self, device: Device, board: str = SIMULATED, identifier: str = "0", *,
                  frequency: float = 250.0, max_voltage: float = 10.0,
                  plant: dict[str, float] | None = None, realtime: bool | None = None,
                  watchdog_timeout: float = 0.1, arm_limit: float | None = math.radians(120.0),
-                 max_missed_samples: int | None = 10, max_encoder_speed: float | None = MAX_ENCODER_SPEED):
+                 max_missed_samples: int | None = 10, max_encoder_speed: float | None = MAX_ENCODER_SPEED,
+                 zero_encoders: bool = False):
         if board not in (SIMULATED, device.board_type):
             raise ValueError(f"board must be {SIMULATED!r} or {device.board_type!r}, got {board!r}")
         simulated = board == SIMULATED
@@ -249,6 +263,8 @@ class QuanserWrapper:
             raise TypeError(f"realtime must be True, False or None, got {realtime!r}")
         if not simulated and realtime is False:
             raise ValueError("a real board always runs in real time")
+        if not isinstance(zero_encoders, bool):
+            raise TypeError(f"zero_encoders must be True or False, got {zero_encoders!r}")
         if not isinstance(identifier, str):
             raise TypeError(f"identifier must be a string such as '0', got {identifier!r}")
         frequency = _real_number("frequency", frequency)
@@ -292,10 +308,12 @@ class QuanserWrapper:
         self.arm_limit = arm_limit
         self.max_missed_samples = max_missed_samples
         self.max_encoder_speed = max_encoder_speed
+        self.zero_encoders = zero_encoders
+        """Zero the encoders at every open() (else keep the board's counts)."""
         self.missed_samples = 0
         self.stall_warning = False
         self.encoders_zeroed = False
-        """True if the last open() zeroed the encoders (the Qube was at rest)."""
+        """True if the last open() zeroed the encoders."""
         self._idle = False
 
         d = device
@@ -347,8 +365,16 @@ class QuanserWrapper:
     def __exit__(self, exc_type, exc, traceback) -> None:
         self.close()
 
-    def open(self) -> None:
-        """Open the board, zero it, enable the amplifier, start the reader task and the watchdog."""
+    def open(self, zero_encoders: bool | None = None) -> None:
+        """Open the board, write 0 V, start the reader task, enable the amplifier, start the watchdog.
+
+        The encoders keep the board's counts unless `zero_encoders` (default: the wrapper's
+        `zero_encoders`) asks to zero them where the Qube rests (`NotAtRestError` if it moves).
+        """
+        if zero_encoders is None:
+            zero_encoders = self.zero_encoders
+        if not isinstance(zero_encoders, bool):
+            raise TypeError(f"zero_encoders must be True, False or None, got {zero_encoders!r}")
         if self._open:
             raise RuntimeError("the board is already open")
         simulated = self.board_name == SIMULATED
@@ -381,10 +407,15 @@ class QuanserWrapper:
             # Quanser's older Python API has no HIL.INFINITE; -1 is its value in the C API.
             board.task_start(self._task, clock.HARDWARE_CLOCK_0, self.frequency,
                              getattr(hil_class, "INFINITE", -1))
-            self.encoders_zeroed = self._at_rest(board)
-            if self.encoders_zeroed:
+            self.encoders_zeroed = False
+            if zero_encoders:
+                if not self._at_rest(board):
+                    raise NotAtRestError(
+                        "the Qube moved while its encoders were to be zeroed: let the pendulum hang still, "
+                        "centre the arm and open again")
                 board.set_encoder_counts(c["encoder_inputs"], len(c["encoder_inputs"]),
                                          np.zeros(len(c["encoder_inputs"]), dtype=np.int32))
+                self.encoders_zeroed = True
             board.watchdog_set_analog_expiration_state(c["analog_outputs"], len(c["analog_outputs"]),
                                                        self._zero_volts)
             board.watchdog_set_digital_expiration_state(  # 0 = DigitalState.LOW: amplifiers disabled
@@ -402,13 +433,14 @@ class QuanserWrapper:
             raise
 
     def _at_rest(self, board: Any) -> bool:
-        """True if no encoder count changed over `REST_CHECK_TIME` of samples (amplifier off)."""
+        """True if no encoder count moved by more than one from where it was over `REST_CHECK_TIME`
+        of samples (amplifier off)."""
         first = None
         for _ in range(max(2, round(REST_CHECK_TIME * self.frequency))):
             board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
             if first is None:
-                first = self._encoders.copy()
-            elif not np.array_equal(first, self._encoders):
+                first = self._encoders.astype(np.int64)
+            elif np.abs(self._encoders - first).max() > 1:
                 return False
         return True
 
@@ -445,9 +477,17 @@ class QuanserWrapper:
         self._check_amplifier()
         self._check_encoders(missed)
         self._check_arm()
-        board.write_analog(self._channels["analog_outputs"], len(volts), volts)
-        if rgb is not None:
-            board.write_other(self._channels["led_outputs"], len(rgb), rgb)
+        try:
+            board.write_analog(self._channels["analog_outputs"], len(volts), volts)
+            if rgb is not None:
+                board.write_other(self._channels["led_outputs"], len(rgb), rgb)
+        except self._board_error as error:
+            if board.watchdog_is_expired():  # it expired after the reload (the process was held up)
+                self._stop(WatchdogExpiredError(
+                    f"the watchdog expired between a sample and its action (no action for "
+                    f"{self.watchdog_timeout} s), so the board zeroed its outputs; resume() drives again"),
+                    error)
+            self._stop(BoardIOError(f"the board refused the voltage: {error_text(error)}"), error)
         return self._currents.copy(), self._encoders.copy(), self._others.copy()
 
     def idle(self) -> None:
@@ -603,7 +643,7 @@ class QuanserWrapper:
         angle = abs(conventions.arm_angle(int(self._encoders[self._arm_at])))
         if angle > self.arm_limit:
             self._stop(ArmLimitError(
-                f"the arm is {math.degrees(angle):.0f} degrees from where it was at open(), beyond "
+                f"the arm is {math.degrees(angle):.0f} degrees from its zero (the centre), beyond "
                 f"arm_limit = {math.degrees(self.arm_limit):.0f} degrees"))
 
 

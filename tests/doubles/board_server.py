@@ -28,6 +28,9 @@ board: the voltage the amplifier applies, whether it is enabled, whether the
 watchdog has expired, whether the last owner closed it, the card options set,
 and the longest time since the last open between two watchdog reloads while it ran (`worst_period`:
 the control loop's worst sample period, as the board saw it).
+`set_true_state(state, identifier)` (not part of Quanser's API either) is a hand on
+the Qube: it puts the plant at [theta, alpha, dtheta, dalpha], whoever holds the
+board, and the encoders count the move.
 """
 
 from __future__ import annotations
@@ -117,6 +120,8 @@ class _Server:
     def handle(self, connection_id: int, method: str, identifier: str, *args):
         if method == "state":
             return self.state(identifier)
+        if method == "set_true_state":
+            return self.set_true_state(identifier, *args)
         if method == "open":
             return self.open(connection_id, identifier, *args)
         board = self.boards.get(identifier)
@@ -182,6 +187,12 @@ class _Server:
             board.worst_period, board.last_reload = 0.0, None
         return None
 
+    def set_true_state(self, identifier: str, state) -> None:
+        board = self.boards.get(identifier)
+        if board is None:
+            raise self.sim.HILError(-11, f"board {identifier} was never opened")
+        board.hil.set_true_state(state)
+
     def state(self, identifier: str) -> dict | None:
         board = self.boards.get(identifier)
         if board is None:
@@ -242,6 +253,13 @@ class BoardServer:
         """The board's state (see the module docstring); None if it was never opened."""
         self._client.send(("state", identifier))
         return self._client.recv()[1]
+
+    def set_true_state(self, state, identifier: str = "0") -> None:
+        """Move the Qube by hand: its plant to [theta, alpha, dtheta, dalpha] (rad, rad/s)."""
+        self._client.send(("set_true_state", identifier, [float(v) for v in state]))
+        reply = self._client.recv()
+        if reply[0] != "ok":
+            raise RuntimeError(f"wall-clock board: {reply[1:]}")
 
     def environment(self) -> dict[str, str]:
         return {ADDRESS_VARIABLE: self.address}
