@@ -14,7 +14,9 @@ TensorBoard event files (`tensorboard --logdir DIR`), `evaluations.npz`,
 model and normalisation statistics a previous run left in DIR, for a curriculum
 (balance, then swing-up; swing-up, then swing-up with a moving target: see
 `warm_start`) or to fine-tune with a randomization; `init` may also name a PPO
-policy file or a shipped policy ("ppo:swingup"), whose actor the run starts from.
+policy file or a shipped policy ("ppo:swingup"), whose actor the run starts from,
+or an imitation run (`training.imitation`); in these two cases the actor stays
+frozen while the new value network learns alone (`warm_start.VALUE_WARMUP_STEPS`).
 The hyperparameter `history` (default 0) gives the policy the last k observations
 and voltages (`qube_suite.policies.history`), for policies that adapt to the plant.
 """
@@ -179,7 +181,7 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
         model = warm_start.load_model(algorithm, init, venv, seed, settings)
     else:
         model, venv = warm_start.from_policy(algorithm, init, venv, seed, settings, policy_kwargs, history)
-    if init is not None and not isinstance(init, pathlib.Path):
+    if init is not None and (not isinstance(init, pathlib.Path) or warm_start.imitation_run(init)):
         frozen = [FrozenUntil(warm_start.actor_parameters(model), warm_start.VALUE_WARMUP_STEPS)]
     resumed = int(model.num_timesteps) if checkpoint is not None else 0
     model.set_logger(configure(str(out), ["csv", "tensorboard"]))
