@@ -128,7 +128,7 @@ def _imitate(task, teacher, steps, iterations, seed, randomization, out, explori
     torch.set_num_threads(1)
     torch.manual_seed(seed)
     out.mkdir(parents=True, exist_ok=True)
-    settings = dict(settings)
+    given, settings = dict(settings), dict(settings)
     num_envs, history = settings.pop("num_envs"), settings.pop("history")
     policy_kwargs = dict(settings.pop("policy_kwargs"))
     activations = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
@@ -203,8 +203,7 @@ def _imitate(task, teacher, steps, iterations, seed, randomization, out, explori
     record = {"algo": "ppo", "task": task, "domain": "qube", "randomization":
               randomization if isinstance(randomization, str) or randomization is None else "custom",
               "seed": seed, "num_envs": num_envs, "teacher": teacher, "iterations": iterations,
-              "exploring_starts": exploring_starts, "hyperparameters": {**settings, "num_envs": num_envs,
-                                                                        "history": history},
+              "exploring_starts": exploring_starts, "hyperparameters": given,
               "steps": iterations * per_iteration * num_envs, "wall_time_s": wall_time,
               "final_loss_v2": rows[-1]["loss_v2"], "stable_baselines3": stable_baselines3.__version__}
     save(export.from_sb3(model, statistics.mean, statistics.var, epsilon=normalized.epsilon,
