@@ -323,6 +323,21 @@ def plot_held_out(summary: list[dict], path: pathlib.Path) -> None:
     figure.savefig(path, dpi=110)
 
 
+def episodes(row: dict) -> int:
+    """Episodes behind a score row (its returns, or the count of a row from `held_out.py`)."""
+    return len(row["returns"]) if "returns" in row else row["episodes"]
+
+
+def held_out_rows(path: str, names: dict[str, str]) -> list[dict]:
+    """Score rows from a `benchmarks/held_out.py --json` file (the same plants and episodes when run
+    with its default seeds and `--plants` = `--held-out`), each policy's row named by `names`."""
+    cells = json.loads(pathlib.Path(path).read_text())["cells"]
+    return [{"run": names.get(cell["policy"], cell["policy"]), "training_seed": 0,
+             "condition": f"held-out {cell['plant']}", "mean_return": cell["mean_return"],
+             "success_rate": cell["successes"] / cell["episodes"], "episodes": cell["episodes"]}
+            for cell in cells]
+
+
 def summarize(rows: list[dict], costs: dict[str, dict]) -> list[dict]:
     """Per row, over its seeds and the held-out plants: success with a Wilson interval, per-plant
     success, worst plant, mean return, the substitute's success, and the training cost."""
@@ -332,8 +347,8 @@ def summarize(rows: list[dict], costs: dict[str, dict]) -> list[dict]:
         held = [row for row in mine if row["condition"].startswith("held-out")]
         if not held:
             continue
-        trials = sum(len(row["returns"]) for row in held)
-        successes = round(sum(row["success_rate"] * len(row["returns"]) for row in held))
+        trials = sum(episodes(row) for row in held)
+        successes = round(sum(row["success_rate"] * episodes(row) for row in held))
         plants: dict[str, list[float]] = {}
         for row in held:
             plants.setdefault(row["condition"], []).append(row["success_rate"])
@@ -379,6 +394,12 @@ def main() -> None:
                         help="fine-tuning steps of each calibrated run (default: 1000000)")
     parser.add_argument("--policies", nargs="*", default=[],
                         help="also score these policies (files or shipped names) as rows, as they are")
+    parser.add_argument("--held-out-json", nargs="*", default=[],
+                        help="also summarize and plot the rows of these benchmarks/held_out.py --json files")
+    parser.add_argument("--name", nargs="*", default=[], metavar="POLICY=ROW",
+                        help="row names for the policies of --held-out-json")
+    parser.add_argument("--summary-only", action="store_true",
+                        help="no training or scoring: summarize the scores in RUNS/sim2real.json")
     parser.add_argument("--held-out-only", action="store_true",
                         help="score on the substitute and the held-out plants only (not on the simulation "
                              "and the named variations)")
@@ -388,7 +409,7 @@ def main() -> None:
     names = tuple(name for name in rows_wanted if name in TRAINING)
     grid = {"address": args.address, "cpus": args.jobs, "storage": runs / "ray"}
     training_grid = {**grid, "cpus": args.train_jobs or args.jobs}
-    if not args.no_train:
+    if not (args.no_train or args.summary_only):
         if [name for name in names if name != "adaptive"]:
             train_missing(runs, args.base, args.steps, args.seeds, names, training_grid)
         elif names:  # the adaptive row does not start from the base
@@ -424,7 +445,13 @@ def main() -> None:
         if CALIBRATED in rows_wanted and (directory / POLICY).exists():
             jobs.append({"run": CALIBRATED, "training_seed": 0, "path": str(directory / POLICY),
                          "condition": condition, **common})
-    rows = run_grid(score, jobs, name="sim2real_scores", **grid)
+    if args.summary_only:
+        previous = json.loads((runs / "sim2real.json").read_text())
+        rows = [row for row in previous["rows"] if "returns" in row]
+    else:
+        rows = run_grid(score, jobs, name="sim2real_scores", **grid)
+    names = dict(pair.split("=", 1) for pair in args.name)
+    imported = [row for path in args.held_out_json for row in held_out_rows(path, names)]
     costs = {}
     for name in ("base", *TRAINING):
         for training_seed in range(args.seeds):
@@ -438,6 +465,8 @@ def main() -> None:
         if record.exists():
             data = json.loads(record.read_text())
             costs[f"{CALIBRATED}, {condition}"] = {"steps": data["steps"], "wall_time_s": data["wall_time_s"]}
+    if args.summary_only:
+        print(f"{len(rows)} scores from {runs / 'sim2real.json'}")
     print("| trained with | seed | evaluated on | return (95 % CI) | success (95 % CI) |")
     print("|---|---|---|---|---|")
     for row in rows:
@@ -449,7 +478,7 @@ def main() -> None:
     print("\n| run | training steps | wall time |\n|---|---|---|")
     for name, cost in costs.items():
         print(f"| {name} | {cost['steps'] / 1e6:.2f} M | {cost['wall_time_s'] / 60:.0f} min |")
-    summary = summarize(rows, costs)
+    summary = summarize(rows + imported, costs)
     print("\n| row | seeds | held-out success (95 % CI) | plants at 100 % | worst plant | mean return | "
           "substitute | training per run |\n|---|---|---|---|---|---|---|---|")
     for row in summary:
@@ -461,8 +490,8 @@ def main() -> None:
         print(f"| {row['row']} | {row['seeds']} | {100 * row['success_rate']:.1f} % ({100 * low:.0f}–"
               f"{100 * high:.0f} %) | {perfect} of {len(row['plants'])} | {100 * row['worst_plant']:.0f} % | "
               f"{row['mean_return']:.0f} | {substitute} | {cost} |")
-    (runs / "sim2real.json").write_text(json.dumps({"rows": rows, "training": costs, "summary": summary},
-                                                   indent=2))
+    (runs / "sim2real.json").write_text(json.dumps({"rows": rows + imported, "training": costs,
+                                                    "summary": summary}, indent=2))
     main_rows = [row for row in rows if row["training_seed"] == 0 and row["condition"] in CONDITIONS
                  and row["run"] in MAIN]
     if main_rows and not args.held_out_only:
