@@ -4,13 +4,21 @@ simulator detail matters.
 Starts from one PPO swing-up run on the nominal simulation (`base`: `--base DIR`,
 or trained here as the shipped policy is, balance then swing-up from it), then
 continues it for `--steps` more on the nominal simulation and, from the same
-start, under each randomization preset (mild, moderate, sim2real, wide), under
-`wide` with an observation history of 8 steps (adaptive), and under one
-accuracy option or effect at a time (ablations: Coulomb friction on both joints
-and the cable's spring, both at the sim2real preset's ranges; one control step of
-action delay; Quanser's 50 rad/s velocity filter; 2048-count encoders). Every run
-has the same budget and the same start; `--seeds N` trains each N times (seeds
-0 to N-1). Runs already in `--runs` are reused.
+start, under each randomization preset (mild, moderate, sim2real, wide), and
+under one accuracy option or effect at a time (ablations: Coulomb friction on
+both joints and the cable's spring, both at the sim2real preset's ranges; one
+control step of action delay; Quanser's 50 rad/s velocity filter; 2048-count
+encoders). Every such run has the same budget and the same start. The adaptive
+row is trained as `ppo:swingup_adaptive` is (its recipe: imitation of the
+swing-up controller under `wide`, history 8), not from the base. `--seeds N`
+trains each N times (seeds 0 to N-1). Runs already in `--runs` are reused.
+
+Rows without training: the calibrated rows (`--calibrated N`) calibrate each of
+the first N held-out plants (the one-minute experiment on the substitute with
+that plant) and fine-tune `ppo:swingup` under a randomization centred on the
+calibration (`--calibrated-steps`), scored on that plant; the model-based
+swing-up controller with nominal parameters and with each plant's calibration;
+and `--policies` (files or shipped names) as they are.
 Then scores each run's final policy over seeded episodes on the hardware substitute
 (`qube_hardware`, whose plant the policies never saw) and on held-out variations
 of that plant (`domain_kwargs={"plant": ...}`; in every hardware episode the
@@ -26,8 +34,10 @@ Every training run and every (run, condition) score is a Ray Tune trial
 time) by default, on a Ray cluster with `--address`.
 
     python benchmarks/sim2real.py [--base DIR] [--steps 2000000] [--episodes 20] [--seeds 1]
-                                  [--held-out 10] [--runs runs/sim2real] [--jobs 2]
-                                  [--address ray://head:10001] [--main-only]
+                                  [--held-out 10] [--runs runs/sim2real] [--jobs 2] [--train-jobs 1]
+                                  [--address ray://head:10001] [--main-only] [--rows ROW ...]
+                                  [--calibrated 3] [--calibrated-steps 1000000]
+                                  [--policies ppo:swingup ...] [--held-out-only]
 """
 
 from __future__ import annotations
@@ -41,11 +51,12 @@ import shutil
 import held_out
 import numpy as np
 
-from qube_suite import evaluate
+from qube_suite import baselines, evaluate
 from qube_suite.grid import run_grid
 from qube_suite.hardware.plant import plant_parameters
 from qube_suite.policies import load_policy
 from qube_suite.randomization.presets import PRESETS
+from qube_suite.training.recipes import RECIPES
 
 DOCS = pathlib.Path(__file__).resolve().parent.parent / "docs"
 _SIM2REAL = PRESETS["sim2real"]["parameters"]
@@ -61,8 +72,12 @@ TRAINING: dict[str, object] = {
     "cable spring only": {"parameters": {"cable_stiffness": _SIM2REAL["cable_stiffness"]}},
 }
 """Training run name -> randomization."""
-HISTORY = {"adaptive": 8}
-"""Training run name -> observation history (steps) of its policy; the others have none."""
+ADAPTIVE = RECIPES["swingup_adaptive"].stages[-1]
+"""The adaptive row is trained as `ppo:swingup_adaptive` is (its recipe's stage), with the row's seed."""
+MODEL_BASED = ("model-based (nominal)", "model-based (calibrated)")
+"""Rows of the swing-up controller, designed for the nominal model or for each plant's calibration."""
+CALIBRATED = "calibrated fine-tuning"
+"""The row of `ppo:swingup` fine-tuned for each plant's calibration (one run per plant)."""
 MAIN = ("nominal", "mild", "moderate", "sim2real", "wide", "adaptive")
 """Runs scored on every condition; the others (ablations) on the hardware substitute only."""
 
@@ -132,13 +147,56 @@ def run_directory(runs: pathlib.Path, name: str, seed: int) -> pathlib.Path:
 
 def train_one(job: dict) -> None:
     """Continue the base run `job["base"]` under `TRAINING[job["name"]]` for `job["steps"]` steps
-    (seed `job["seed"]`) into `job["out"]`."""
+    (seed `job["seed"]`) into `job["out"]`; the adaptive row by its recipe's imitation stage."""
     from qube_suite.training import train
+    from qube_suite.training.imitation import imitate
 
+    if job["name"] == "adaptive":
+        print(f"training adaptive, seed {job['seed']} ({ADAPTIVE.steps} steps imitating "
+              f"{ADAPTIVE.teacher})", flush=True)
+        settings = dict(ADAPTIVE.hyperparameters)
+        imitate(ADAPTIVE.task, ADAPTIVE.teacher, ADAPTIVE.steps, seed=job["seed"],
+                randomization=ADAPTIVE.randomization, out=job["out"], history=settings.pop("history"),
+                hyperparameters=settings, progress=False)
+        return
     print(f"training {job['name']}, seed {job['seed']} ({job['steps']} steps from the base)", flush=True)
     train("swingup", steps=job["steps"], seed=job["seed"], randomization=TRAINING[job["name"]],
-          init=job["base"], progress=False, out=job["out"],
-          hyperparameters={"history": HISTORY.get(job["name"], 0)})
+          init=job["base"], progress=False, out=job["out"])
+
+
+def calibrate_plant(job: dict) -> None:
+    """Calibrate the substitute with plant `job["plant"]` (the one-minute experiment) into
+    `job["out"]`, and if `job["steps"]`, fine-tune `ppo:swingup` for it into the same directory."""
+    from qube_suite import calibration
+    from qube_suite.training import train
+
+    out = pathlib.Path(job["out"])
+    out.mkdir(parents=True, exist_ok=True)
+    result = calibration.calibrate("qube_hardware", {"plant": job["plant"]},
+                                   recording=out / "calibration.jsonl")
+    result.save(out / "calibration.yaml")
+    if job["steps"]:
+        print(f"fine-tuning ppo:swingup for {out.name} ({job['steps']} steps)", flush=True)
+        train("swingup", steps=job["steps"], seed=0, calibration=out / "calibration.yaml", init="ppo:swingup",
+              progress=False, out=out)
+
+
+def calibrate_missing(runs: pathlib.Path, held_out_count: int, fine_tuned: int, steps: int,
+                      grid: dict) -> None:
+    """Calibrations of the `held_out_count` held-out plants that `runs` lacks, the first `fine_tuned`
+    also fine-tuned for (`runs/calibrated/held-out_<i>`)."""
+    todo = []
+    for i, (condition, plant) in enumerate(held_out_conditions(held_out_count).items()):
+        out = calibrated_directory(runs, condition)
+        wanted = out / (POLICY if i < fine_tuned else "calibration.yaml")
+        if not wanted.exists():
+            todo.append({"plant": plant, "out": str(out), "steps": steps if i < fine_tuned else 0})
+    run_grid(calibrate_plant, todo, name="sim2real_calibrations", **grid)
+
+
+def calibrated_directory(runs: pathlib.Path, condition: str) -> pathlib.Path:
+    """Where the calibration (and fine-tuned run) for a held-out `condition` lives."""
+    return runs / "calibrated" / condition.replace(" ", "_")
 
 
 def train_missing(runs: pathlib.Path, base: pathlib.Path | None, steps: int, seeds: int,
@@ -187,7 +245,11 @@ def score(job: dict) -> dict:
     run, path, condition = job["run"], job["path"], job["condition"]
     episodes, seed = job["episodes"], job["seed"]
     domain = CONDITIONS[condition][0] if condition in CONDITIONS else "qube_hardware"
-    policy = load_policy(path)
+    if path in baselines.CONTROLLERS:  # a controller, on a board: one step of latency
+        policy = path if job.get("parameters") is None else baselines.make(
+            path, latency_steps=1, parameters=job["parameters"])
+    else:
+        policy = load_policy(path)
     results = [evaluate(policy, domain=domain, task="swingup", episodes=1, seed=seed + episode,
                         domain_kwargs=None if domain == "qube" else
                         {"plant": episode_plant(condition, seed + episode, job["held_out"])})
@@ -238,6 +300,72 @@ def plot(rows: list[dict], path: pathlib.Path) -> None:
     figure.savefig(path, dpi=110)
 
 
+def plot_held_out(summary: list[dict], path: pathlib.Path) -> None:
+    """Success rate of every row on every held-out plant, as a table of colours."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib import pyplot
+
+    plants = sorted({plant for row in summary for plant in row["plants"]}, key=lambda c: int(c.split()[-1]))
+    grid = np.array([[row["plants"].get(plant, np.nan) for plant in plants] for row in summary])
+    figure, axes = pyplot.subplots(figsize=(1.0 + 0.7 * len(plants), 0.9 + 0.42 * len(summary)))
+    image = axes.imshow(100 * grid, vmin=0, vmax=100, cmap="RdYlGn", aspect="auto")
+    for (r, c), value in np.ndenumerate(grid):
+        if not np.isnan(value):
+            axes.text(c, r, f"{100 * value:.0f}", ha="center", va="center", fontsize=8)
+    axes.set_xticks(range(len(plants)), [plant.split()[-1] for plant in plants])
+    axes.set_yticks(range(len(summary)), [f"{row['row']} ({row['seeds']})" for row in summary])
+    axes.set_xlabel("held-out plant of the hardware substitute")
+    axes.set_title("Swing-up success (%) on held-out plants")
+    figure.colorbar(image, ax=axes, label="success (%)")
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+
+
+def episodes(row: dict) -> int:
+    """Episodes behind a score row (its returns, or the count of a row from `held_out.py`)."""
+    return len(row["returns"]) if "returns" in row else row["episodes"]
+
+
+def held_out_rows(path: str, names: dict[str, str]) -> list[dict]:
+    """Score rows from a `benchmarks/held_out.py --json` file (the same plants and episodes when run
+    with its default seeds and `--plants` = `--held-out`), each policy's row named by `names`."""
+    cells = json.loads(pathlib.Path(path).read_text())["cells"]
+    return [{"run": names.get(cell["policy"], cell["policy"]), "training_seed": 0,
+             "condition": f"held-out {cell['plant']}", "mean_return": cell["mean_return"],
+             "success_rate": cell["successes"] / cell["episodes"], "episodes": cell["episodes"]}
+            for cell in cells]
+
+
+def summarize(rows: list[dict], costs: dict[str, dict]) -> list[dict]:
+    """Per row, over its seeds and the held-out plants: success with a Wilson interval, per-plant
+    success, worst plant, mean return, the substitute's success, and the training cost."""
+    summary = []
+    for run in dict.fromkeys(row["run"] for row in rows):
+        mine = [row for row in rows if row["run"] == run]
+        held = [row for row in mine if row["condition"].startswith("held-out")]
+        if not held:
+            continue
+        trials = sum(episodes(row) for row in held)
+        successes = round(sum(row["success_rate"] * episodes(row) for row in held))
+        plants: dict[str, list[float]] = {}
+        for row in held:
+            plants.setdefault(row["condition"], []).append(row["success_rate"])
+        substitute = [row["success_rate"] for row in mine if row["condition"] == "hardware"]
+        spent = [cost for name, cost in costs.items() if name.rsplit(",", 1)[0] == run]
+        summary.append({
+            "row": run, "seeds": len({row["training_seed"] for row in held}), "episodes": trials,
+            "success_rate": successes / trials, "success_ci": list(wilson_interval(successes, trials)),
+            "plants": {plant: float(np.mean(values)) for plant, values in plants.items()},
+            "worst_plant": float(min(min(values) for values in plants.values())),
+            "mean_return": float(np.mean([row["mean_return"] for row in held])),
+            "substitute": float(np.mean(substitute)) if substitute else None,
+            "steps_per_run": float(np.mean([c["steps"] for c in spent])) if spent else 0.0,
+            "wall_time_s_per_run": float(np.mean([c["wall_time_s"] for c in spent])) if spent else 0.0})
+    return summary
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--base", type=pathlib.Path, help="a finished swing-up training run to start from "
@@ -249,18 +377,52 @@ def main() -> None:
     parser.add_argument("--held-out", type=int, default=10, help="held-out plants of the main runs")
     parser.add_argument("--runs", default="runs/sim2real", help="directory of the training runs")
     parser.add_argument("--jobs", type=int, default=2, help="cores of this machine for the trials (one each)")
+    parser.add_argument("--train-jobs", type=int, default=None,
+                        help="cores for the training trials (default: --jobs); scoring uses --jobs")
     parser.add_argument("--address", default=None, help="run the trials on this Ray cluster instead")
     parser.add_argument("--no-train", action="store_true", help="only score the runs already present")
     parser.add_argument("--plot", type=pathlib.Path, default=DOCS / "sim2real.png", help="plot file")
+    parser.add_argument("--held-out-plot", type=pathlib.Path, default=DOCS / "sim2real_held_out.png",
+                        help="plot file of the rows' success on each held-out plant")
     parser.add_argument("--main-only", action="store_true",
                         help="only the nominal run and the presets, without the ablations")
+    parser.add_argument("--rows", nargs="+", default=None, choices=(*TRAINING, *MODEL_BASED, CALIBRATED),
+                        help="train and score only these rows (default: all)")
+    parser.add_argument("--calibrated", type=int, default=3,
+                        help="held-out plants the calibrated fine-tuning row is run for (default: 3)")
+    parser.add_argument("--calibrated-steps", type=int, default=1_000_000,
+                        help="fine-tuning steps of each calibrated run (default: 1000000)")
+    parser.add_argument("--policies", nargs="*", default=[],
+                        help="also score these policies (files or shipped names) as rows, as they are")
+    parser.add_argument("--held-out-json", nargs="*", default=[],
+                        help="also summarize and plot the rows of these benchmarks/held_out.py --json files")
+    parser.add_argument("--name", nargs="*", default=[], metavar="POLICY=ROW",
+                        help="row names for the policies of --held-out-json")
+    parser.add_argument("--summary-only", action="store_true",
+                        help="no training or scoring: summarize the scores in RUNS/sim2real.json")
+    parser.add_argument("--held-out-only", action="store_true",
+                        help="score on the substitute and the held-out plants only (not on the simulation "
+                             "and the named variations)")
     args = parser.parse_args()
     runs = pathlib.Path(args.runs).resolve()  # trials run in other directories
-    names = MAIN if args.main_only else tuple(TRAINING)
+    rows_wanted = args.rows or (*(MAIN if args.main_only else TRAINING), *MODEL_BASED, CALIBRATED)
+    names = tuple(name for name in rows_wanted if name in TRAINING)
     grid = {"address": args.address, "cpus": args.jobs, "storage": runs / "ray"}
-    if not args.no_train:
-        train_missing(runs, args.base, args.steps, args.seeds, names, grid)
-    conditions = (*CONDITIONS, *held_out_conditions(args.held_out))
+    training_grid = {**grid, "cpus": args.train_jobs or args.jobs}
+    if not (args.no_train or args.summary_only):
+        if [name for name in names if name != "adaptive"]:
+            train_missing(runs, args.base, args.steps, args.seeds, names, training_grid)
+        elif names:  # the adaptive row does not start from the base
+            todo = [{"name": "adaptive", "seed": seed, "steps": ADAPTIVE.steps, "base": None,
+                     "out": str(run_directory(runs, "adaptive", seed))} for seed in range(args.seeds)
+                    if not (run_directory(runs, "adaptive", seed) / POLICY).exists()]
+            run_grid(train_one, todo, name="sim2real_training", **training_grid)
+        if MODEL_BASED[1] in rows_wanted or CALIBRATED in rows_wanted:
+            fine_tuned = args.calibrated if CALIBRATED in rows_wanted else 0
+            calibrate_missing(runs, args.held_out, fine_tuned, args.calibrated_steps, training_grid)
+    held = held_out_conditions(args.held_out)
+    conditions = ("hardware", *held) if args.held_out_only else (*CONDITIONS, *held)
+    common = {"episodes": args.episodes, "seed": args.seed, "held_out": args.held_out}
     jobs = []
     for name in names:
         for training_seed in range(args.seeds):
@@ -268,9 +430,28 @@ def main() -> None:
             if path.exists():
                 for condition in conditions if name in MAIN else ("hardware",):
                     jobs.append({"run": name, "training_seed": training_seed, "path": str(path),
-                                 "condition": condition, "episodes": args.episodes, "seed": args.seed,
-                                 "held_out": args.held_out})
-    rows = run_grid(score, jobs, name="sim2real_scores", **grid)
+                                 "condition": condition, **common})
+    for spec in args.policies:
+        jobs += [{"run": spec, "training_seed": 0, "path": spec, "condition": c, **common}
+                 for c in conditions]
+    if MODEL_BASED[0] in rows_wanted:
+        jobs += [{"run": MODEL_BASED[0], "training_seed": 0, "path": "swingup", "condition": c, **common}
+                 for c in conditions]
+    for condition in held:
+        directory = calibrated_directory(runs, condition)
+        if MODEL_BASED[1] in rows_wanted and (directory / "calibration.yaml").exists():
+            jobs.append({"run": MODEL_BASED[1], "training_seed": 0, "path": "swingup", "condition": condition,
+                         "parameters": str(directory / "calibration.yaml"), **common})
+        if CALIBRATED in rows_wanted and (directory / POLICY).exists():
+            jobs.append({"run": CALIBRATED, "training_seed": 0, "path": str(directory / POLICY),
+                         "condition": condition, **common})
+    if args.summary_only:
+        previous = json.loads((runs / "sim2real.json").read_text())
+        rows = [row for row in previous["rows"] if "returns" in row]
+    else:
+        rows = run_grid(score, jobs, name="sim2real_scores", **grid)
+    names = dict(pair.split("=", 1) for pair in args.name)
+    imported = [row for path in args.held_out_json for row in held_out_rows(path, names)]
     costs = {}
     for name in ("base", *TRAINING):
         for training_seed in range(args.seeds):
@@ -279,6 +460,13 @@ def main() -> None:
                 data = json.loads(record.read_text())
                 costs[f"{name}, seed {training_seed}"] = {"steps": data["steps"],
                                                           "wall_time_s": data["wall_time_s"]}
+    for condition in held:
+        record = calibrated_directory(runs, condition) / "training.json"
+        if record.exists():
+            data = json.loads(record.read_text())
+            costs[f"{CALIBRATED}, {condition}"] = {"steps": data["steps"], "wall_time_s": data["wall_time_s"]}
+    if args.summary_only:
+        print(f"{len(rows)} scores from {runs / 'sim2real.json'}")
     print("| trained with | seed | evaluated on | return (95 % CI) | success (95 % CI) |")
     print("|---|---|---|---|---|")
     for row in rows:
@@ -290,9 +478,26 @@ def main() -> None:
     print("\n| run | training steps | wall time |\n|---|---|---|")
     for name, cost in costs.items():
         print(f"| {name} | {cost['steps'] / 1e6:.2f} M | {cost['wall_time_s'] / 60:.0f} min |")
-    (runs / "sim2real.json").write_text(json.dumps({"rows": rows, "training": costs}, indent=2))
-    plot([row for row in rows if row["training_seed"] == 0 and row["condition"] in CONDITIONS], args.plot)
-
+    summary = summarize(rows + imported, costs)
+    print("\n| row | seeds | held-out success (95 % CI) | plants at 100 % | worst plant | mean return | "
+          "substitute | training per run |\n|---|---|---|---|---|---|---|---|")
+    for row in summary:
+        low, high = row["success_ci"]
+        perfect = sum(value == 1.0 for value in row["plants"].values())
+        substitute = "–" if row["substitute"] is None else f"{100 * row['substitute']:.0f} %"
+        cost = (f"{row['steps_per_run'] / 1e6:.1f} M steps, {row['wall_time_s_per_run'] / 60:.0f} min"
+                if row["steps_per_run"] else "none")
+        print(f"| {row['row']} | {row['seeds']} | {100 * row['success_rate']:.1f} % ({100 * low:.0f}–"
+              f"{100 * high:.0f} %) | {perfect} of {len(row['plants'])} | {100 * row['worst_plant']:.0f} % | "
+              f"{row['mean_return']:.0f} | {substitute} | {cost} |")
+    (runs / "sim2real.json").write_text(json.dumps({"rows": rows + imported, "training": costs,
+                                                    "summary": summary}, indent=2))
+    main_rows = [row for row in rows if row["training_seed"] == 0 and row["condition"] in CONDITIONS
+                 and row["run"] in MAIN]
+    if main_rows and not args.held_out_only:
+        plot(main_rows, args.plot)
+    if summary:
+        plot_held_out(summary, args.held_out_plot)
 
 if __name__ == "__main__":
     main()

@@ -461,11 +461,12 @@ def _add_bench(commands) -> None:
 
 SINGLE_RUN_OPTIONS = ("algo", "steps", "seed", "randomization", "domain", "num_envs", "init", "history",
                       "device", "board", "target", "target_amplitude", "target_hold_time", "target_frequency",
-                      "target_angle")
+                      "target_angle", "calibration")
 """`train` options that make one training run instead of the task's recipe."""
 
 
 def _train(args: argparse.Namespace) -> int:
+    from qube_suite import policies
     from qube_suite.training import recipes, train
 
     if args.list_recipes:
@@ -482,11 +483,14 @@ def _train(args: argparse.Namespace) -> int:
                              eval_episodes=args.eval_episodes, checkpoints=args.checkpoints)
         print(f"recipe {recipe} done; policy {policy}")
         return 0
+    init = args.init
+    if args.calibration is not None and init is None and f"ppo:{args.task}" in policies.shipped():
+        init = f"ppo:{args.task}"  # fine-tune the shipped policy for the calibrated Qube
     result = train(args.task, algo=args.algo or "ppo", steps=args.steps or 2_000_000, seed=args.seed or 0,
-                   domain=args.domain or "qube",
+                   domain=args.domain or "qube", calibration=args.calibration,
                    randomization=args.randomization, out=args.out, num_envs=args.num_envs,
                    evaluations=args.evaluations, eval_episodes=args.eval_episodes,
-                   checkpoints=args.checkpoints, init=args.init, progress=not args.quiet,
+                   checkpoints=args.checkpoints, init=init, progress=not args.quiet,
                    hyperparameters=None if args.history is None else {"history": args.history},
                    task_kwargs=_target_kwargs(args), domain_kwargs=_hardware_domain_kwargs(args) or None)
     print(f"trained {result.steps} steps in {result.wall_time:.0f} s; best evaluation return "
@@ -529,6 +533,9 @@ def _add_train(commands) -> None:
                           help="start from the model of a previous run (its directory), e.g. balance before "
                                "swingup, swingup before swingup_follow, or to fine-tune with a "
                                "randomization; or from the actor of a PPO policy file or shipped policy")
+    training.add_argument("--calibration", default=None, metavar="FILE.yaml",
+                          help="train for the Qube of this calibration ('qube-suite calibrate'): under a "
+                               "randomization centred on it, from the task's shipped policy unless --init")
     training.add_argument("--history", type=int, default=None, metavar="K",
                           help="the policy also sees its last K observations and voltages (default: 0)")
     training.add_argument("--out", default=None, help="run directory (default: runs/ALGO_TASK_SEED; of a "
@@ -647,8 +654,49 @@ def _add_check_board(commands) -> None:
     check.set_defaults(run=_check_board)
 
 
+def _adapt(args: argparse.Namespace) -> int:
+    from qube_suite.training import calibrated
+
+    domain_kwargs = _hardware_domain_kwargs(args)
+    report = calibrated.adapt(args.task, args.domain, domain_kwargs, out=args.out, init=args.init,
+                              steps=args.steps, seconds=args.seconds, episodes=args.episodes, seed=args.seed,
+                              progress=not args.quiet)
+    print(report.table())
+    print(f"calibration {report.calibration}; fine-tuned policy {report.policy} "
+          f"({report.training_wall_time_s:.0f} s of training); all in {args.out}/adapt.json")
+    return 0
+
+
+def _add_adapt(commands) -> None:
+    adapt = commands.add_parser(
+        "adapt", help="calibrate a Qube, fine-tune a policy for it, evaluate it on the board",
+        description="The whole loop for a Qube nobody described: the excitation experiment on its board, "
+                    "a calibration, PPO fine-tuning in simulation under a randomization centred on it, and "
+                    "the policy's episodes on the board before and after (needs the 'rl' extra).",
+        epilog="examples:\n"
+               "  qube-suite adapt --task swingup --domain qube_hardware --board qube_servo2_usb\n"
+               "  qube-suite adapt --task swingup --domain qube_hardware --seconds 20 --steps 200000 "
+               "--episodes 2   (the substitute, in minutes)",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    adapt.add_argument("--task", default="swingup", help="task with a shipped policy (default: swingup)")
+    adapt.add_argument("--domain", choices=("qube_hardware",), default="qube_hardware",
+                       help="where the Qube is: a board (the substitute unless --board)")
+    _add_hardware_arguments(adapt)
+    adapt.add_argument("--init", default=None, help="policy to fine-tune (default: ppo:TASK)")
+    adapt.add_argument("--seconds", type=_positive_float, default=60.0,
+                       help="calibration experiment, at most 60 s (default: 60)")
+    adapt.add_argument("--steps", type=_positive_int, default=2_000_000,
+                       help="fine-tuning steps in simulation (default: 2000000)")
+    adapt.add_argument("--episodes", type=_positive_int, default=10,
+                       help="evaluation episodes on the board, per policy (default: 10)")
+    adapt.add_argument("--seed", type=int, default=0, help="seed (default: 0)")
+    adapt.add_argument("--out", default="runs/adapt", help="directory for everything (default: runs/adapt)")
+    _add_quiet(adapt)
+    adapt.set_defaults(run=_adapt)
+
+
 SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_train, _add_bench, _add_calibrate,
-               _add_check_board)
+               _add_check_board, _add_adapt)
 """Parser builders of the subcommands, in the order `--help` lists them."""
 
 

@@ -138,17 +138,23 @@ def test_importing_qube_suite_and_running_a_policy_does_not_import_torch():
     assert result.stdout.strip() == "[]"
 
 
+VARIANTS = {"ppo:swingup_adaptive": "swingup"}
+"""Shipped policies named after their task and a variant: spec -> task."""
+
+
 def test_the_policies_are_shipped_and_listed():
     assert set(SHIPPED) <= set(shipped())
     for spec, path in shipped().items():
         policy = load_policy(spec)
-        assert path.suffix == ".npz" and policy.name == spec and policy.tasks == (spec.split(":")[1],)
+        task = VARIANTS.get(spec, spec.split(":")[1])
+        assert path.suffix == ".npz" and policy.name == spec and policy.tasks == (task,)
 
 
 @pytest.mark.parametrize(("spec", "task", "least"), [
     ("ppo:balance", "balance", 2000), ("ppo:dampen", "dampen", 1850),
     ("ppo:balance_follow", "balance_follow", 1900), ("ppo:swingup", "swingup", 1500),
-    ("ppo:rotor", "rotor", 40), ("ppo:swingup_follow", "swingup_follow", 1400)])
+    ("ppo:rotor", "rotor", 40), ("ppo:swingup_follow", "swingup_follow", 1400),
+    ("ppo:swingup_adaptive", "swingup", 1500)])
 def test_shipped_policies_reach_their_targets_on_unseen_seeds(spec, task, least):
     result = evaluate(spec, task=task, episodes=2, seed=1000)
     assert min(result.returns) >= least and result.success_rate == 1.0, result.returns
@@ -160,6 +166,17 @@ def test_shipped_policies_reach_their_targets_on_unseen_seeds(spec, task, least)
 def test_shipped_swingups_transfer_to_the_hardware_substitute(spec, task):
     result = evaluate(spec, domain="qube_hardware", task=task, episodes=2, seed=1000)
     assert min(result.returns) >= 1300 and result.success_rate == 1.0, result.returns
+
+
+@pytest.mark.slow
+def test_the_adaptive_swingup_swings_up_a_qube_where_the_memoryless_one_fails():
+    heavy_and_sticky = {"pendulum_mass": 0.024 * 1.25, "motor_resistance": 8.4 * 0.8, "arm_friction": 3e-3,
+                        "cable_stiffness": 3e-3}
+    kwargs = {"domain": "qube_hardware", "episodes": 2, "seed": 1000,
+              "domain_kwargs": {"plant": heavy_and_sticky}}
+    assert evaluate("ppo:swingup", **kwargs).success_rate == 0.0
+    result = evaluate("ppo:swingup_adaptive", **kwargs)
+    assert result.success_rate == 1.0 and min(result.returns) >= 1500, result.returns
 
 
 def test_eval_cli_runs_a_shipped_policy(capsys):

@@ -42,6 +42,8 @@ def test_every_shipped_policy_has_a_recipe_that_matches_its_training_record():
     ({"steps": 0}, "steps must be a positive integer"),
     ({"keep": "model.zip"}, "keep must be one of policy.npz, best_policy.npz"),
     ({"randomization": "milder"}, "unknown randomization preset 'milder'"),
+    ({"teacher": "juggler"}, "unknown teacher 'juggler'"),
+    ({"teacher": "swingup", "keep": "best_policy.npz"}, "an imitation stage starts afresh"),
 ])
 def test_a_bad_recipe_is_refused_naming_the_stage(change, message):
     stage = dataclasses.replace(Stage("only", "balance", 100, 1), **change)

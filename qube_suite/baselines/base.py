@@ -63,6 +63,11 @@ class Controller:
         self.observer.command(volts)
         return volts
 
+    def sent(self, volts: float) -> None:
+        """Tell the observer that `volts` (V), not the voltage returned, answered the last observation
+        (e.g. a learner's voltage while this controller labels its states: `training.imitation`)."""
+        self.observer.correct_command(volts)
+
     def voltage_for(self, state: np.ndarray, target: float = 0.0) -> float:
         """Voltage (V, clipped) for `state` [theta, alpha, dtheta, dalpha] and the arm target (rad)."""
         raise NotImplementedError

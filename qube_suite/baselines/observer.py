@@ -152,6 +152,10 @@ class StateObserver:
         """Record the voltage (V) sent in answer to the last measurement."""
         self._voltages.append(float(volts))
 
+    def correct_command(self, volts: float) -> None:
+        """Replace the voltage recorded for the last measurement by `volts` (V), the one really sent."""
+        self._voltages[-1] = float(volts)
+
     def _advance(self, state: list[float], volts: float) -> list[float]:
         """`state` one control period later under `volts` (V) and the unknown accelerations: RK4 of
         the second-order equations (the accelerations do not depend on theta)."""

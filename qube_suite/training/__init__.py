@@ -14,7 +14,9 @@ TensorBoard event files (`tensorboard --logdir DIR`), `evaluations.npz`,
 model and normalisation statistics a previous run left in DIR, for a curriculum
 (balance, then swing-up; swing-up, then swing-up with a moving target: see
 `warm_start`) or to fine-tune with a randomization; `init` may also name a PPO
-policy file or a shipped policy ("ppo:swingup"), whose actor the run starts from.
+policy file or a shipped policy ("ppo:swingup"), whose actor the run starts from,
+or an imitation run (`training.imitation`); in these two cases the actor stays
+frozen while the new value network learns alone (`warm_start.VALUE_WARMUP_STEPS`).
 The hyperparameter `history` (default 0) gives the policy the last k observations
 and voltages (`qube_suite.policies.history`), for policies that adapt to the plant.
 """
@@ -66,7 +68,8 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
           domain_kwargs: dict[str, Any] | None = None, evaluations: int = 20, eval_episodes: int = 8,
           checkpoints: int = 10, progress: bool = True, hyperparameters: dict[str, Any] | None = None,
           init: str | pathlib.Path | None = None, exploring_starts: float | None = None,
-          resume: bool = False, task_kwargs: dict[str, Any] | None = None) -> TrainingResult:
+          resume: bool = False, task_kwargs: dict[str, Any] | None = None,
+          calibration: str | pathlib.Path | None = None) -> TrainingResult:
     """Train `algo` ("ppo" or "sac") on `task` for `steps` environment steps and export the policy.
 
     PPO rounds `steps` up to whole rollouts (n_steps x num_envs).
@@ -95,6 +98,9 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         resume: if `out` holds checkpoints of an interrupted run (with these
             settings), continue from the latest one to `steps` in all, its
             evaluations kept; otherwise start as usual.
+        calibration: a calibration file (`qube_suite.calibration`) to train for, under
+            a randomization centred on it (`calibrated.randomization_for`) instead of
+            `randomization`.
     """
     if algo not in HYPERPARAMETERS:
         raise ValueError(f"unknown algorithm {algo!r}; valid: {', '.join(HYPERPARAMETERS)}")
@@ -102,6 +108,12 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         raise ValueError(f"unknown domain/task {domain}/{task}; see `qube-suite list`")
     if not (isinstance(steps, int) and steps > 0):
         raise ValueError(f"steps must be a positive integer, got {steps!r}")
+    if calibration is not None:
+        if randomization is not None:
+            raise ValueError("give a randomization or a calibration to centre one on, not both")
+        from qube_suite.training.calibrated import randomization_for
+
+        randomization = randomization_for(calibration)
     if randomization is not None:
         randomization_configs.load(randomization)  # a bad config fails here, before any environment
     if exploring_starts is not None and not 0.0 <= exploring_starts <= 1.0:
@@ -123,12 +135,12 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
     require_rl()
     return _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
                   eval_episodes, checkpoints, progress, {**HYPERPARAMETERS[algo], **(hyperparameters or {})},
-                  init, exploring_starts, resume, task_kwargs)
+                  init, exploring_starts, resume, task_kwargs, calibration)
 
 
 def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
            eval_episodes, checkpoints, progress, hyperparameters, init, exploring_starts,
-           resume, task_kwargs) -> TrainingResult:
+           resume, task_kwargs, calibration) -> TrainingResult:
     import stable_baselines3
     import torch
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
@@ -179,12 +191,13 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
         model = warm_start.load_model(algorithm, init, venv, seed, settings)
     else:
         model, venv = warm_start.from_policy(algorithm, init, venv, seed, settings, policy_kwargs, history)
-    if init is not None and not isinstance(init, pathlib.Path):
+    if init is not None and (not isinstance(init, pathlib.Path) or warm_start.imitation_run(init)):
         frozen = [FrozenUntil(warm_start.actor_parameters(model), warm_start.VALUE_WARMUP_STEPS)]
     resumed = int(model.num_timesteps) if checkpoint is not None else 0
     model.set_logger(configure(str(out), ["csv", "tensorboard"]))
     source = None if init is None else str(init) if isinstance(init, pathlib.Path) else init.name
     record = {"algo": algo, "task": task, "domain": domain, "randomization": _describe(randomization),
+              "calibration": None if calibration is None else str(calibration),
               "domain_kwargs": domain_kwargs, "task_kwargs": task_kwargs, "seed": seed, "num_envs": num_envs,
               "init": source, "exploring_starts": starts, "resumed_from_steps": resumed,
               "hyperparameters": hyperparameters, "stable_baselines3": stable_baselines3.__version__}

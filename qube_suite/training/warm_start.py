@@ -12,7 +12,8 @@ current features' and, for the voltages, as a uniform draw within the limits.
 A run can also start from a policy file (`from_policy`), e.g. a shipped one: its
 actor and normalisation are copied, the value network starts afresh and learns
 alone, the actor frozen, for the first `VALUE_WARMUP_STEPS`, so that the first
-updates do not follow a value function that knows nothing. Imports
+updates do not follow a value function that knows nothing. The same holds for a
+run that starts from an imitation run (`imitation_run`, `training.imitation`). Imports
 stable-baselines3 and torch.
 
 An interrupted run continues from its latest checkpoint (`latest_checkpoint`,
@@ -34,6 +35,12 @@ from qube_suite.policies.mlp import MLPPolicy
 
 VALUE_WARMUP_STEPS = 400_000
 """Steps a run started from a policy file trains its value network only (about 50 PPO updates)."""
+
+
+def imitation_run(init: pathlib.Path) -> bool:
+    """Whether `init` holds a run of `training.imitation`, whose value network was never fitted."""
+    record = init / "training.json"
+    return record.is_file() and "teacher" in json.loads(record.read_text())
 
 
 def _check_widening(init: pathlib.Path, old_size: int, new_size: int) -> None:

@@ -1,0 +1,113 @@
+"""Training for one Qube: a randomization centred on its calibration, and the whole loop on its board.
+
+    from qube_suite.training import calibrated, train
+    train("swingup", calibration="my_qube.yaml", init="ppo:swingup", steps=2_000_000)
+    report = calibrated.adapt("swingup", "qube_hardware", {"board": "qube_servo2_usb"})
+
+`randomization_for` turns a calibration (`qube_suite.calibration`) into a
+randomization config: every estimated parameter drawn uniformly from its 95 %
+interval widened `WIDTH` times, and at least +-`MINIMUM_SPREAD` of the estimate
+(an interval only says how well one recording pins the value; a Qube warms up,
+its friction changes from run to run); the parameters a calibration does not
+estimate, and the sensor and actuator effects, as in the `sim2real` preset.
+`adapt` runs the loop a lab runs on a Qube nobody described: calibrate it (the
+excitation experiment on its board), fine-tune a policy under the randomization
+centred on that calibration, and evaluate the policy before and after on the
+board.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+import os
+import pathlib
+from collections.abc import Mapping
+from typing import Any
+
+from qube_suite.calibration.calibration_file import Calibration
+from qube_suite.calibration.calibration_file import load as load_calibration
+from qube_suite.randomization.presets import PRESETS
+
+WIDTH = 2.0
+"""Each estimated parameter is drawn from its 95 % interval widened this many times about the estimate ..."""
+MINIMUM_SPREAD = 0.1
+"""... and from at least +-this fraction of the estimate."""
+BASE_PRESET = "sim2real"
+"""Ranges of the parameters a calibration does not estimate, and the sensor and actuator effects."""
+
+
+def randomization_for(calibration: Calibration | str | os.PathLike, width: float = WIDTH,
+                      minimum_spread: float = MINIMUM_SPREAD) -> dict[str, Any]:
+    """A randomization config centred on `calibration` (a `Calibration` or the path of its file)."""
+    if not (width > 0.0 and minimum_spread >= 0.0):
+        raise ValueError(f"width must be > 0 and minimum_spread >= 0, got {width!r}, {minimum_spread!r}")
+    if not isinstance(calibration, Calibration):
+        calibration = load_calibration(calibration)
+    config = copy.deepcopy(PRESETS[BASE_PRESET])
+    for name, spec in calibration.randomization(width)["parameters"].items():
+        value = calibration.parameters[name]
+        spec["low"] = max(0.0, min(spec["low"], value * (1.0 - minimum_spread)))
+        spec["high"] = max(spec["high"], value * (1.0 + minimum_spread))
+        config["parameters"][name] = spec
+    return config
+
+
+@dataclasses.dataclass
+class AdaptReport:
+    """What `adapt` did: the calibration file, the fine-tuned policy, and both policies' evaluation on
+    the board (mean return, success rate, episodes)."""
+
+    calibration: pathlib.Path
+    policy: pathlib.Path
+    before: dict[str, float]
+    after: dict[str, float]
+    training_wall_time_s: float
+
+    def table(self) -> str:
+        """The evaluations as a Markdown table."""
+        rows = ["| policy | mean return | success |", "|---|---|---|"]
+        for name, result in (("before", self.before), ("after", self.after)):
+            rows.append(f"| {name}: {result['policy']} | {result['mean_return']:.0f} | "
+                        f"{100 * result['success_rate']:.0f} % of {result['episodes']} |")
+        return "\n".join(rows)
+
+
+def adapt(task: str = "swingup", domain: str = "qube_hardware",
+          domain_kwargs: Mapping[str, Any] | None = None, out: str | os.PathLike = "runs/adapt",
+          init: str | None = None, steps: int = 2_000_000,
+          seconds: float = 60.0, episodes: int = 10, seed: int = 0, progress: bool = True,
+          **train_kwargs: Any) -> AdaptReport:
+    """Calibrate the Qube of `domain` (`domain_kwargs`: its board) with a `seconds` experiment, fine-tune
+    `init` (default: the shipped policy `ppo:<task>`) for `steps` under `randomization_for` the
+    calibration, in simulation, and evaluate both policies for `episodes` episodes on the board.
+
+    Writes `out/calibration.yaml` (and its recording), the run `out/fine_tune`, and `out/adapt.json`.
+    `train_kwargs` go to `train` (e.g. `num_envs`, `evaluations`).
+    """
+    from qube_suite import calibration, policies
+    from qube_suite.evaluation import evaluate
+    from qube_suite.training import train
+
+    init = init or f"ppo:{task}"
+    if init not in policies.shipped() and not pathlib.Path(init).exists():
+        raise ValueError(f"init: no policy {init!r} (shipped: {', '.join(policies.shipped())}); give --init")
+    out = pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    kwargs = dict(domain_kwargs or {})
+    calibrated = calibration.calibrate(domain, kwargs, seconds=seconds, seed=seed,
+                                       recording=out / "calibration.jsonl")
+    calibration_path = pathlib.Path(calibrated.save(out / "calibration.yaml"))
+    result = train(task, steps=steps, seed=seed, calibration=calibration_path, init=init,
+                   out=out / "fine_tune", progress=progress, **train_kwargs)
+
+    def score(policy: str | os.PathLike) -> dict[str, Any]:
+        run = evaluate(str(policy), domain=domain, task=task, episodes=episodes, seed=seed,
+                       domain_kwargs=kwargs or None)
+        return {"policy": str(policy), "mean_return": float(sum(run.returns) / len(run.returns)),
+                "success_rate": float(sum(run.successes) / len(run.successes)), "episodes": episodes}
+
+    report = AdaptReport(calibration_path, result.policy, score(init), score(result.policy), result.wall_time)
+    (out / "adapt.json").write_text(json.dumps(dataclasses.asdict(report), indent=2, default=str))
+    return report

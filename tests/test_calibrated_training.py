@@ -1,0 +1,97 @@
+"""Training for a calibrated Qube: the randomization centred on a calibration, `train --calibration`,
+and `adapt` (calibrate, fine-tune, evaluate) on the hardware substitute in a short mode."""
+
+import importlib.util
+import json
+
+import pytest
+
+from qube_suite import cli, parameters, training
+from qube_suite.calibration.calibration_file import Calibration
+from qube_suite.calibration.calibration_file import load as load_calibration
+from qube_suite.randomization import load as load_randomization
+from qube_suite.randomization.presets import PRESETS
+from qube_suite.training import calibrated
+
+HAVE_RL = all(importlib.util.find_spec(name) for name in training.RL_EXTRA)
+needs_rl = pytest.mark.skipif(not HAVE_RL, reason="needs the rl extra")
+
+
+def heavy_qube() -> Calibration:
+    """A calibration of a Qube whose pendulum is 25 % heavier and whose arm sticks twice as much."""
+    values = dict(parameters.NOMINAL, pendulum_mass=0.030, arm_friction=2e-3)
+    return Calibration(parameters=values, intervals={"pendulum_mass": (0.0299, 0.0302),
+                                                     "arm_friction": (1.5e-3, 2.2e-3)}, metadata={})
+
+
+def test_the_randomization_is_centred_on_the_estimates_and_keeps_sim2real_elsewhere():
+    config = calibrated.randomization_for(heavy_qube())
+    mass, friction = config["parameters"]["pendulum_mass"], config["parameters"]["arm_friction"]
+    assert mass["relative"] is False and friction["relative"] is False
+    # a narrow interval widens to +-MINIMUM_SPREAD of the estimate ...
+    assert mass["low"] == pytest.approx(0.030 * 0.9) and mass["high"] == pytest.approx(0.030 * 1.1)
+    # ... a wide one to WIDTH times itself about the estimate
+    assert friction["low"] == pytest.approx(2e-3 - 2 * 0.5e-3)
+    assert friction["high"] == pytest.approx(2e-3 + 2 * 0.2e-3)
+    assert config["parameters"]["rotor_inertia"] == PRESETS["sim2real"]["parameters"]["rotor_inertia"]
+    assert config["effects"] == PRESETS["sim2real"]["effects"]
+    load_randomization(config)  # a valid config
+    assert PRESETS["sim2real"]["parameters"]["pendulum_mass"].get("relative", True)  # preset untouched
+
+
+def test_a_calibration_file_works_as_well(tmp_path):
+    path = tmp_path / "my_qube.yaml"
+    heavy_qube().save(path)
+    assert calibrated.randomization_for(path) == calibrated.randomization_for(heavy_qube())
+    with pytest.raises(ValueError, match="width must be > 0"):
+        calibrated.randomization_for(path, width=0.0)
+
+
+def test_train_refuses_a_randomization_beside_a_calibration(tmp_path):
+    path = tmp_path / "my_qube.yaml"
+    heavy_qube().save(path)
+    with pytest.raises(ValueError, match="not both"):
+        training.train("swingup", calibration=path, randomization="wide")
+
+
+def test_train_with_a_calibration_fine_tunes_the_shipped_policy(monkeypatch, tmp_path):
+    calls = []
+    result = training.TrainingResult(tmp_path, tmp_path, tmp_path, 1, 0.0, 0.0)
+    monkeypatch.setattr(training, "train", lambda task, **kwargs: calls.append((task, kwargs)) or result)
+    assert cli.main(["train", "--task", "swingup", "--calibration", "my_qube.yaml"]) == 0
+    assert cli.main(["train", "--task", "swingup", "--calibration", "q.yaml", "--init", "runs/mine"]) == 0
+    assert [(task, kw["calibration"], kw["init"]) for task, kw in calls] == [
+        ("swingup", "my_qube.yaml", "ppo:swingup"), ("swingup", "q.yaml", "runs/mine")]
+
+
+@pytest.mark.slow
+@needs_rl
+def test_adapt_calibrates_fine_tunes_and_evaluates_on_the_substitute(tmp_path, capsys):
+    plant = {"pendulum_mass": 0.024 * 1.2, "arm_friction": 2e-3}  # a Qube nobody described
+    report = calibrated.adapt("swingup", "qube_hardware", {"plant": plant}, out=tmp_path, steps=512,
+                              seconds=20.0, episodes=1, progress=False, num_envs=2, evaluations=1,
+                              eval_episodes=1, checkpoints=1, hyperparameters={"n_steps": 256})
+    estimate = load_calibration(report.calibration).parameters["pendulum_mass"]
+    assert estimate == pytest.approx(0.024 * 1.2, rel=0.1)
+    record = json.loads((tmp_path / "fine_tune" / "training.json").read_text())
+    assert record["calibration"] == str(report.calibration) and record["init"] == "ppo:swingup"
+    saved = json.loads((tmp_path / "adapt.json").read_text())
+    assert saved["before"]["policy"] == "ppo:swingup" and saved["after"]["policy"] == str(report.policy)
+    assert saved["before"]["episodes"] == 1 and 0.0 <= saved["after"]["success_rate"] <= 1.0
+    assert "| before: ppo:swingup |" in report.table()
+
+
+def test_the_adapt_command_passes_the_board_and_the_short_mode_on(monkeypatch, tmp_path, capsys):
+    calls = []
+    report = calibrated.AdaptReport(tmp_path / "c.yaml", tmp_path / "p.npz",
+                                    {"policy": "ppo:swingup", "mean_return": 700.0, "success_rate": 0.5,
+                                     "episodes": 2},
+                                    {"policy": "p.npz", "mean_return": 1800.0, "success_rate": 1.0,
+                                     "episodes": 2}, 12.0)
+    monkeypatch.setattr(calibrated, "adapt", lambda *args, **kwargs: calls.append((args, kwargs)) or report)
+    assert cli.main(["adapt", "--task", "swingup", "--domain", "qube_hardware", "--board", "simulated",
+                     "--seconds", "20", "--steps", "1000", "--episodes", "2", "--out", str(tmp_path)]) == 0
+    (args, kwargs), = calls
+    assert args == ("swingup", "qube_hardware", {"board": "simulated"})
+    assert (kwargs["seconds"], kwargs["steps"], kwargs["episodes"]) == (20.0, 1000, 2)
+    assert "| after: p.npz | 1800 | 100 % of 2 |" in capsys.readouterr().out

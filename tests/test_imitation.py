@@ -1,0 +1,87 @@
+"""Imitation of a controller (DAgger): the teacher hears the voltage really sent, bad settings are
+refused, a tiny run fits the teacher's labels and leaves a run PPO starts from with its actor frozen."""
+
+import csv
+import importlib.util
+import json
+
+import numpy as np
+import pytest
+
+from qube_suite import baselines, training
+from qube_suite.policies import load_policy
+from qube_suite.training import imitation
+
+HAVE_RL = all(importlib.util.find_spec(name) for name in training.RL_EXTRA)
+needs_rl = pytest.mark.skipif(not HAVE_RL, reason="needs the rl extra")
+
+HANGING = np.array([0.0, np.pi, 0.0, 0.0])
+UPRIGHT = np.array([0.0, 0.05, 0.0, 0.0])        # balancing: the LQR's voltages do not saturate
+NEXT = np.array([0.0005, 0.052, 0.1, 0.5])       # a sample later
+
+
+def trig(state):
+    return np.array([np.cos(state[0]), np.sin(state[0]), np.cos(state[1]), np.sin(state[1]), *state[2:]])
+
+
+def test_a_controller_told_the_voltage_really_sent_predicts_with_it():
+    told, untold, agreed = (baselines.make("swingup", latency_steps=1) for _ in range(3))
+    returned = [controller(UPRIGHT) for controller in (told, untold, agreed)][0]
+    told.sent(3.0)  # a learner sent 3 V instead: the observer expects the arm to have moved on
+    agreed.sent(returned)  # the voltage it returned: nothing changes
+    first, second, third = told(NEXT), untold(NEXT), agreed(NEXT)
+    assert second == third
+    assert first < second - 0.3  # the LQR answers the push it now knows of
+
+
+def test_teachers_label_each_world_and_restart_the_ones_asked():
+    teachers = imitation.Teachers("swingup", 2, 3.0)
+    first = teachers.labels(np.array([trig(UPRIGHT)] * 2))
+    assert first.shape == (2,)
+    expected = baselines.make("swingup", latency_steps=imitation.TEACHER_LATENCY_STEPS)(UPRIGHT)
+    assert first[0] == first[1] == pytest.approx(expected)
+    teachers.sent(np.array([3.0, -3.0]))
+    apart = teachers.labels(np.array([trig(NEXT)] * 2))
+    assert apart[0] < apart[1] - 0.6  # their observers heard different voltages
+    fresh = baselines.make("swingup", latency_steps=imitation.TEACHER_LATENCY_STEPS)(NEXT)
+    teachers.reset(np.array([False, True]))
+    assert teachers.labels(np.array([trig(NEXT)] * 2))[1] == pytest.approx(fresh)  # world 1 starts afresh
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"teacher": "juggler"}, "unknown teacher 'juggler'"),
+    ({"teacher": "rotor"}, "not made for task 'swingup'"),
+    ({"steps": 5, "iterations": 10}, "steps >= iterations >= 1"),
+    ({"exploring_starts": 1.5}, "exploring_starts must be a fraction"),
+    ({"randomization": "widest"}, "unknown randomization preset 'widest'"),
+])
+def test_bad_settings_are_refused_before_any_environment(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        imitation.imitate("swingup", **kwargs)
+
+
+@pytest.mark.slow
+@needs_rl
+def test_a_tiny_imitation_fits_the_teacher_and_ppo_starts_from_it_with_the_actor_frozen(tmp_path):
+    small = {"num_envs": 4, "n_steps": 64, "batch_size": 256,
+             "policy_kwargs": {"net_arch": {"pi": [32, 32], "vf": [32, 32]}, "activation_fn": "tanh",
+                               "log_std_init": -1.0, "ortho_init": False}}
+    run = imitation.imitate("swingup", steps=8192, iterations=2, history=2, out=tmp_path / "imitation",
+                            hyperparameters=small, progress=False)
+    rows = list(csv.DictReader((run / "imitation.csv").read_text().splitlines()))
+    assert [float(row["beta"]) for row in rows] == [1.0, 0.5]
+    assert int(rows[-1]["labels"]) == 8192
+    record = json.loads((run / "training.json").read_text())
+    assert record["teacher"] == "swingup" and record["randomization"] == "wide"
+    policy = load_policy(run / "policy.npz")
+    assert policy.history == 2 and [w.shape[0] for w in policy.weights] == [32, 32, 1]
+    # the fitted actor answers the teacher's first state as the teacher does, more closely than 0 V
+    policy.reset()
+    teacher = baselines.make("swingup", latency_steps=imitation.TEACHER_LATENCY_STEPS)
+    assert abs(policy(HANGING) - teacher(HANGING)) < abs(teacher(HANGING))
+    before = policy.weights[0].copy()
+    result = training.train("swingup", steps=512, init=run, out=tmp_path / "ppo", evaluations=1,
+                            eval_episodes=1, checkpoints=1, progress=False, hyperparameters={
+                                "history": 2, "n_steps": 64, "num_envs": 4, "batch_size": 256})
+    after = load_policy(result.final_policy).weights[0]
+    np.testing.assert_array_equal(after, before)  # within VALUE_WARMUP_STEPS the actor stays as imitated
