@@ -40,6 +40,7 @@ import numpy as np
 
 from qube_suite import baselines
 from qube_suite import randomization as randomization_configs
+from qube_suite.conventions import ObservationLayout
 from qube_suite.training.hyperparameters import HYPERPARAMETERS
 
 BETA_DECAY = 0.5
@@ -97,6 +98,8 @@ class Teachers:
     def __init__(self, name: str, worlds: int, voltage_limit: float):
         self._controllers = [baselines.make(name, voltage_limit=voltage_limit,
                                             latency_steps=TEACHER_LATENCY_STEPS) for _ in range(worlds)]
+        for controller in self._controllers:  # they read the learner's trig features
+            controller.observation_layout = ObservationLayout("trig", controller.follows_target)
 
     def labels(self, features: np.ndarray) -> np.ndarray:
         """The teachers' voltages (V) for each world's `trig` features (rows)."""
