@@ -102,8 +102,6 @@ def _gymnasium_step(env_id: str, **kwargs) -> Callable[[], Callable[[int], float
     def make():
         import gymnasium
 
-        import qube_suite  # noqa: F401  (registers the ids)
-
         env = gymnasium.make(env_id, **kwargs)
         action = np.zeros(env.action_space.shape, env.action_space.dtype)
         return _single_steps(lambda: env.step(action), lambda: env.reset(seed=0),
@@ -156,8 +154,6 @@ def _cartpole():
 
 def _vector_env(num_envs: int, randomization: str | None = None):
     import gymnasium
-
-    import qube_suite  # noqa: F401
 
     return gymnasium.make_vec("QubeSuite/Swingup-v0", num_envs=num_envs,
                               vectorization_mode="vector_entry_point", randomization=randomization)
@@ -213,8 +209,6 @@ def _raw_rollout(num_worlds: int, control_steps: int = 1) -> Callable[[], Callab
 def _gymnasium_reset(randomization: str | None = None) -> Callable[[], Callable[[int], float]]:
     def make():
         import gymnasium
-
-        import qube_suite  # noqa: F401
 
         return _repeated(gymnasium.make("QubeSuite/Swingup-v0", randomization=randomization).reset)
 

@@ -1,34 +1,35 @@
-"""The package's layers: a module imports only from lower layers (DESIGN.md, "Layers")."""
+"""The package's layers hold: the contract in pyproject.toml ([tool.importlinter], drawn in
+docs/architecture.md), checked with import-linter."""
 
 from __future__ import annotations
 
-import ast
 import pathlib
+import subprocess
+import sys
 
 import pytest
 
-PACKAGE = pathlib.Path(__file__).resolve().parent.parent / "qube_suite"
-
-ABOVE_DOMAINS = ("qube_suite.baselines", "qube_suite.policies", "qube_suite.training", "qube_suite.cli",
-                 "qube_suite.evaluation", "qube_suite.suite")
-"""What the domains must never import, not even inside a function: controllers, policies, training, the
-CLI, and `suite`, which builds the domains' reset controllers and hands them in."""
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+CHECK = ("import sys; from importlinter.cli import lint_imports; "
+         "sys.exit(lint_imports(config_filename=sys.argv[1], no_cache=True))")
 
 
-def imported_modules(path: pathlib.Path) -> set[str]:
-    """Every module `path` imports (absolute names; `from qube_suite import x` counts as qube_suite.x)."""
-    names = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.Import):
-            names.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.module:
-            names.add(node.module)
-            names.update(f"{node.module}.{alias.name}" for alias in node.names)
-    return names
+def test_the_layer_contract_holds():
+    pytest.importorskip("importlinter")
+    result = subprocess.run([sys.executable, "-c", CHECK, str(ROOT / "pyproject.toml")], cwd=ROOT,
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout + result.stderr
 
 
-@pytest.mark.parametrize("path", sorted((PACKAGE / "domains").glob("*.py")), ids=lambda p: p.name)
-def test_domains_import_no_controllers_policies_training_or_cli(path):
-    forbidden = sorted(name for name in imported_modules(path)
-                       if any(name == top or name.startswith(top + ".") for top in ABOVE_DOMAINS))
-    assert not forbidden, f"{path.name} imports {forbidden}"
+def test_the_contract_catches_a_domain_importing_a_controller(tmp_path):
+    # The same contracts, with one upward import added to what the checker sees: it must fail.
+    pytest.importorskip("importlinter")
+    package = tmp_path / "qube_suite"
+    subprocess.run(["cp", "-r", str(ROOT / "qube_suite"), str(package)], check=True)
+    (package / "domains" / "upward.py").write_text("from qube_suite import baselines\n", encoding="utf-8")
+    (tmp_path / "pyproject.toml").write_text((ROOT / "pyproject.toml").read_text(encoding="utf-8"),
+                                             encoding="utf-8")
+    result = subprocess.run([sys.executable, "-c", CHECK, str(tmp_path / "pyproject.toml")], cwd=tmp_path,
+                            capture_output=True, text=True, env={"PYTHONPATH": str(tmp_path), "PATH": ""})
+    assert result.returncode != 0
+    assert "qube_suite.domains.upward -> qube_suite.baselines" in result.stdout

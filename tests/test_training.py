@@ -43,7 +43,7 @@ def test_numpy_policy_matches_the_torch_policy(algo, task):
     import stable_baselines3
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from qube_suite.policies import export
+    from qube_suite.training import export
     from qube_suite.policies.features import trig
     from qube_suite.training.environments import make_vec_env
 

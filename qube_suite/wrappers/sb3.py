@@ -82,8 +82,6 @@ class SB3VecEnv(VecEnv):
 
 def make_sb3_vec_env(env_id: str, num_envs: int, **kwargs) -> SB3VecEnv:
     """`gymnasium.make_vec(env_id, num_envs, autoreset_mode=SAME_STEP, **kwargs)` as an SB3 `VecEnv`."""
-    import qube_suite  # noqa: F401  (registers the ids)
-
     env = gymnasium.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
                              autoreset_mode=AutoresetMode.SAME_STEP, **kwargs)
     return SB3VecEnv(env)

@@ -1,4 +1,4 @@
-"""A stable-baselines3 policy as a numpy policy file (needs torch; imported only by training)."""
+"""A stable-baselines3 policy as a numpy policy file (needs torch)."""
 
 from __future__ import annotations
 
