@@ -65,8 +65,8 @@ def test_kernel_iterations_equal_the_numpy_transcription():
     kernel.U[:], kernel.X[:], kernel.K[:] = U, X, K
     costs = []
     for _ in range(5):
-        cost, U, X, K, mu = reference_iteration(controller.model, controller.cost, H, 3.0, x0, U, X, K,
-                                                reference, speed, mu, kernel)
+        cost, U, X, K, mu = reference_iteration(controller.model, controller.cost, H, kernel.voltage_limit,
+                                                x0, U, X, K, reference, speed, mu, kernel)
         assert kernel.iterate(x0, reference, speed) == pytest.approx(cost, rel=1e-9)
         np.testing.assert_allclose(kernel.U, U, atol=1e-9)
         np.testing.assert_allclose(kernel.X, X, atol=1e-9)
