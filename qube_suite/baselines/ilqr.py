@@ -174,7 +174,6 @@ class IterativeLQR(Controller):
             kernel.iterate(state, reference, reference_speed)
         return float(kernel.U[0])
 
-
     def _start_from_cheaper(self, state: np.ndarray, target: float, reference: np.ndarray,
                             reference_speed: np.ndarray) -> None:
         """Replace the plan by the balance LQR's closed loop about `Follow`'s arm set-point if that
