@@ -55,9 +55,11 @@ def test_kernel_jacobians_are_the_derivatives_of_its_step(controller):
         np.testing.assert_allclose(jacobian, numeric, rtol=1e-6, atol=1e-8)
 
 
-def test_kernel_iterations_equal_the_numpy_transcription():
+@pytest.mark.parametrize("lean_limit", [math.inf, 0.3])
+def test_kernel_iterations_equal_the_numpy_transcription(lean_limit):
     controller = IterativeLQR(horizon=0.2)
     kernel = controller.kernel
+    kernel.lean_limit = lean_limit  # 0.3: the plan below leans further, so the lean term is on
     knots = kernel.knots
     x0 = np.array([0.2, 2.5, 0.5, -3.0])
     reference, speed = np.full(knots + 1, 0.3), np.full(knots + 1, 0.1)
@@ -65,8 +67,8 @@ def test_kernel_iterations_equal_the_numpy_transcription():
     kernel.U[:], kernel.X[:], kernel.K[:] = U, X, K
     costs = []
     for _ in range(5):
-        cost, U, X, K, mu = reference_iteration(controller.model, controller.cost, H, 3.0, x0, U, X, K,
-                                                reference, speed, mu, kernel)
+        cost, U, X, K, mu = reference_iteration(controller.model, controller.cost, H, kernel.voltage_limit,
+                                                x0, U, X, K, reference, speed, mu, kernel)
         assert kernel.iterate(x0, reference, speed) == pytest.approx(cost, rel=1e-9)
         np.testing.assert_allclose(kernel.U, U, atol=1e-9)
         np.testing.assert_allclose(kernel.X, X, atol=1e-9)
@@ -88,6 +90,31 @@ def test_iterations_converge_to_a_plan_that_meets_the_limits():
     assert np.max(np.abs(controller.kernel.X[:, 0])) < math.radians(90)
     # the plan pumps the pendulum: within 1.2 s the pendulum rises well above horizontal
     assert np.min(np.abs(np.cos(controller.kernel.X[:, 1]) - 1)) < 1.0 and math.isfinite(cost)
+
+
+def test_lean_limit_costs_only_while_balanced():
+    controller = IterativeLQR()
+    controller.voltage_for(np.array([0.0, math.pi, 0.0, 0.0]))  # hanging: swinging up
+    assert not controller.balancing and controller.kernel.lean_limit == math.inf
+    controller.reset()
+    controller.voltage_for(np.array([0.0, 0.05, 0.0, 0.0]))
+    assert controller.balancing and controller.kernel.lean_limit == controller.cost.lean_limit
+    # the lean counts from the nearest upright: a plan one turn round pays as much as one that is not
+    kernel, x = controller.kernel, np.array([0.0, 0.5, 0.0, 0.0])
+    costs = []
+    for alpha in (0.5, 0.5 + 2 * math.pi):
+        kernel.U[:], kernel.K[:], kernel.X[:] = 0.0, 0.0, [0.0, alpha, 0.0, 0.0]
+        costs.append(kernel.rollout_cost(x + [0.0, alpha - 0.5, 0.0, 0.0], 0.0, 0.0))
+    assert costs[0] == pytest.approx(costs[1], rel=1e-9)
+    kernel.lean_limit = math.inf
+    assert kernel.rollout_cost(x, 0.0, 0.0) < costs[0]
+
+
+def test_plan_leaves_room_for_cancelling_friction():
+    """The plan stays 0.2 V inside the limit (1e-3 N m at kt / Rm = 0.005 N m/V), at most half of it."""
+    controller = IterativeLQR(voltage_limit=3.0)
+    assert controller.kernel.voltage_limit == pytest.approx(3.0 - 1e-3 / (0.042 / 8.4))
+    assert IterativeLQR(voltage_limit=0.2).kernel.voltage_limit == pytest.approx(0.1)
 
 
 def test_bad_settings_are_refused():

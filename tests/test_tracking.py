@@ -43,3 +43,12 @@ def test_ilqr_follows_two_second_steps_in_simulation():
     result = evaluate("ilqr", task="swingup_follow", episodes=2, seed=0, task_kwargs=STEPS)
     assert min(result.returns) > 1800  # swung up and kept up
     assert result.follow_error < 0.1
+
+
+@pytest.mark.slow
+def test_ilqr_keeps_the_pendulum_up_through_a_jump_on_the_substitute():
+    """Seed 0's step at 6 s (-7 to +47 degrees): the shifted plan's rollout dropped the pendulum, and the
+    iteration planned it round a full turn, past the 20 degree limit (terminated at 6.1 s)."""
+    result = evaluate("ilqr", domain="qube_hardware", task="balance_follow", episodes=1, seed=0,
+                      task_kwargs=STEPS)
+    assert result.returns[0] > 2000

@@ -43,8 +43,8 @@ def test_numpy_policy_matches_the_torch_policy(algo, task):
     import stable_baselines3
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from qube_suite.training import export
     from qube_suite.policies.features import trig
+    from qube_suite.training import export
     from qube_suite.training.environments import make_vec_env
 
     venv = VecNormalize(make_vec_env(task, 2, seed=0), norm_reward=False)

@@ -7,7 +7,7 @@ tens of microseconds here. The model, the cost and the steps are documented in
 `qube_suite.baselines.ilqr`; tests check that both give the same iterates.
 """
 
-from libc.math cimport cos, sin, fabs, INFINITY
+from libc.math cimport cos, sin, fabs, round, INFINITY, M_PI
 
 import numpy as np
 
@@ -22,7 +22,8 @@ cdef struct Model:
 
 
 cdef struct Cost:
-    double pendulum, arm, arm_speed, pendulum_speed, voltage, arm_limit, limit_weight, terminal
+    double pendulum, arm, arm_speed, pendulum_speed, voltage, arm_limit, limit_weight, lean_limit, lean_weight
+    double terminal
 
 
 cdef void dynamics(const Model* m, const double* x, double u, double* f, double* J, bint jacobian) noexcept nogil:
@@ -110,10 +111,14 @@ cdef double stage_cost(const Cost* q, const double* x, double u, double r, doubl
     """scale * l(x, u): the running cost (see `ilqr.py`); derivatives into lx (4), lxx (4 x 4 diagonal), lu,
     luu."""
     cdef double e = x[0] - r, ed = x[2] - rd, over = fabs(x[0]) - q.arm_limit
+    cdef double lean = x[1] - 2.0 * M_PI * round(x[1] / (2.0 * M_PI))  # from the nearest upright
+    cdef double leaning = fabs(lean) - q.lean_limit
     cdef double value = (q.pendulum * (1.0 - cos(x[1])) + q.arm * e * e + q.arm_speed * ed * ed
                          + q.pendulum_speed * x[3] * x[3] + q.voltage * u * u)
     if over > 0.0:
         value += q.limit_weight * over * over
+    if leaning > 0.0:
+        value += q.lean_weight * leaning * leaning
     if derivatives:
         lx[0] = scale * 2.0 * q.arm * e
         lx[1] = scale * q.pendulum * sin(x[1])
@@ -126,6 +131,9 @@ cdef double stage_cost(const Cost* q, const double* x, double u, double r, doubl
         if over > 0.0:
             lx[0] += scale * 2.0 * q.limit_weight * over * (1.0 if x[0] > 0.0 else -1.0)
             lxx[0] += scale * 2.0 * q.limit_weight
+        if leaning > 0.0:
+            lx[1] += scale * 2.0 * q.lean_weight * leaning * (1.0 if lean > 0.0 else -1.0)
+            lxx[1] += scale * 2.0 * q.lean_weight
         lu[0] = scale * 2.0 * q.voltage * u
         luu[0] = scale * 2.0 * q.voltage
     return scale * value
@@ -152,7 +160,7 @@ cdef class Kernel:
                            model.gravity_torque, model.arm_damping, model.pendulum_damping,
                            model.torque_per_volt, model.back_emf)
         self.cost = Cost(cost.pendulum, cost.arm, cost.arm_speed, cost.pendulum_speed, cost.voltage,
-                         cost.arm_limit, cost.limit_weight, cost.terminal)
+                         cost.arm_limit, cost.limit_weight, INFINITY, cost.lean_weight, cost.terminal)
         self.knots, self.timestep, self.voltage_limit = knots, timestep, voltage_limit
         self.regularization = 0.0
         self.U, self.k = np.zeros(knots), np.zeros(knots)
@@ -162,6 +170,16 @@ cdef class Kernel:
         self._D = np.zeros((knots, 20))
         self.reference, self.reference_speed = np.zeros(knots + 1), np.zeros(knots + 1)
         self._r, self._rd = self.reference, self.reference_speed
+
+    @property
+    def lean_limit(self):
+        """The pendulum's lean from upright (rad) beyond which it pays `lean_weight` times the square of
+        the excess; infinite (the start): no such cost."""
+        return self.cost.lean_limit
+
+    @lean_limit.setter
+    def lean_limit(self, double value):
+        self.cost.lean_limit = value
 
     def step(self, x, double u, double h):
         """(RK4 step of length h from x under u, its Jacobian (4 x 5) with respect to (x, u))."""
@@ -204,6 +222,14 @@ cdef class Kernel:
         total += stage_cost(&self.cost, &X[self.knots, 0], 0.0, self._r[self.knots], self._rd[self.knots],
                             self.cost.terminal, NULL, NULL, NULL, NULL, False)
         return total
+
+    def rollout_cost(self, x0, reference, reference_speed):
+        """The cost of the plan from the state x0, its own feedback applied (as `iterate` starts),
+        towards the arm reference (rad) and its speed (rad/s); the plan is left as it is."""
+        cdef double[:] x = np.ascontiguousarray(x0, dtype=np.float64)
+        self.reference[:] = reference
+        self.reference_speed[:] = reference_speed
+        return self._rollout(x, self._Xnew, self._Unew, self._X, self._U, 0.0, True)
 
     def iterate(self, x0, reference, reference_speed, int line_search=6):
         """One iLQR iteration from the state x0 towards the arm reference (rad, per knot or one value)

@@ -148,8 +148,7 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     from stable_baselines3.common.vec_env import VecNormalize
 
     from qube_suite.policies import save
-    from qube_suite.training import export
-    from qube_suite.training import warm_start
+    from qube_suite.training import export, warm_start
     from qube_suite.training.callbacks import FrozenUntil, OnNewBest, ProgressBar
     from qube_suite.training.environments import make_vec_env
 

@@ -125,8 +125,8 @@ def _imitate(task, teacher, steps, iterations, seed, randomization, out, explori
     from stable_baselines3.common.vec_env import VecNormalize
 
     from qube_suite.policies import save
-    from qube_suite.training import export
     from qube_suite.progress import Progress
+    from qube_suite.training import export
     from qube_suite.training.environments import make_vec_env
 
     torch.set_num_threads(1)
