@@ -14,7 +14,6 @@ from qube_suite.randomization import (
     FilteredVelocity,
     ObservationDelay,
     ObservationNoise,
-    OneRow,
     Quantization,
     Saturation,
     Streams,
@@ -25,8 +24,8 @@ PERIOD = 0.004
 
 
 def one_qube(effects):
-    """A chain for one Qube, as a one-Qube domain gets it: a batch of one, floats in and out."""
-    return OneRow(Chain(effects))
+    """A chain for one Qube, as a one-Qube domain gets it: settings as numbers, floats in and out."""
+    return Chain(effects)
 
 
 def run(effects, voltages, task="swingup", seed=0, frequency=250.0):
