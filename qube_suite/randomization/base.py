@@ -159,6 +159,11 @@ def number_or_array(value, dtype=np.float64):
     return array.item() if array.ndim == 0 else array
 
 
+def shape(x) -> tuple[int, ...]:
+    """The shape of a signal's value: () for one Qube's float, (n,) for n Qubes' array."""
+    return x.shape if type(x) is np.ndarray else ()
+
+
 def per_env(setting, rows: np.ndarray | None):
     """`setting`, or its entries for `rows` when it holds one per environment (an array)."""
     return setting[rows] if rows is not None and type(setting) is np.ndarray else setting

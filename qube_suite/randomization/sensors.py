@@ -19,6 +19,7 @@ from qube_suite.randomization.base import (
     number_or_array,
     per_env,
     rint,
+    shape,
     with_rows,
 )
 from qube_suite.velocity_filter import VELOCITY_FILTER_CUTOFF, VelocityFilter, filtered_velocity
@@ -105,6 +106,6 @@ class ObservationNoise(Effect):
 
     def output(self, x, rows: np.ndarray | None):
         theta, alpha, dtheta, dalpha = x
-        n0, n1, n2, n3 = components(generator_of(self._rng, rows).standard_normal(np.shape(theta) + (4,)))
+        n0, n1, n2, n3 = components(generator_of(self._rng, rows).standard_normal(shape(theta) + (4,)))
         s0, s1, s2, s3 = components(per_env(self.std, rows))
         return [wrap_angle(theta + s0 * n0), wrap_angle(alpha + s1 * n1), dtheta + s2 * n2, dalpha + s3 * n3]

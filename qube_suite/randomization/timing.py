@@ -6,7 +6,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from qube_suite.randomization.base import Effect, Field, generator_of, number_or_array, per_env
+from qube_suite.randomization.base import Effect, Field, generator_of, number_or_array, per_env, shape
 
 
 class ControlJitter(Effect):
@@ -30,5 +30,5 @@ class ControlJitter(Effect):
         self._rng = rng
 
     def output(self, x, rows: np.ndarray | None):
-        draws = generator_of(self._rng, rows).random(np.shape(x) or None)  # a float for one Qube
+        draws = generator_of(self._rng, rows).random(shape(x) or None)  # a float for one Qube
         return x * (1.0 + per_env(self.fraction, rows) * (2.0 * draws - 1.0))
