@@ -252,13 +252,15 @@ class Chain:
         self.signal = self.effects[0].signal if self.effects else None
 
     def reset(self, x, rows: np.ndarray | None = None):
-        y = inward(x, self.signal)
+        one = type(x) is not np.ndarray  # one Qube's floats, the form effects compute on
+        y = x if one else inward(x, self.signal)
         for effect in self.effects:
             y = effect.start(y, rows)
-        return outward(y, x, self.signal)
+        return y if one else outward(y, x, self.signal)
 
     def __call__(self, x):
-        y = inward(x, self.signal)
+        one = type(x) is not np.ndarray
+        y = x if one else inward(x, self.signal)
         for effect in self.effects:
             y = effect.advance(y)
-        return outward(y, x, self.signal)
+        return y if one else outward(y, x, self.signal)
