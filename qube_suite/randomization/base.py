@@ -9,7 +9,7 @@ n Qubes as float64 arrays with one row per Qube, (n, 4) or (n,):
     y = effect(x)                    # the output one control step later
 
 Each effect's maths is written once, elementwise: it computes on a state's four
-components (`components`), each a float for one Qube or a column of n values,
+components (`inward`), each a float for one Qube or a column of n values,
 and on a voltage or duration as a float or an array, so the same lines serve one
 Qube (fast Python arithmetic) and a batch (numpy).
 
@@ -73,7 +73,8 @@ class Effect:
     Subclasses set `name` (their key in a config's `effects`), `signal` (what they
     transform: "state", "voltage" or "duration"), `fields` and `stochastic`
     (whether they draw from a generator), and implement `output` if they have no
-    memory, or `reset` and `__call__` if they do.
+    memory, or `start` and `advance` if they do: on the signal in the form `inward`
+    gives, elementwise, so that one Qube's floats and arrays take the same lines.
     """
 
     name: ClassVar[str]
