@@ -39,6 +39,13 @@ VELOCITY_FILTER_CUTOFF = 50.0
 """wc of Quanser's velocity filter 50 s / (s + 50) (rad/s)."""
 
 
+def filtered_velocity(velocity, angle, last_angle, pole, gain):
+    """The filter's next estimate (rad/s) from its last `velocity` when the angle moved from
+    `last_angle` to `angle` (rad): p v + (1 - p) / T wrap(x - x_last), with `pole` p and `gain`
+    (1 - p) / T (1/s). Floats (one angle) or arrays, elementwise."""
+    return pole * velocity + gain * wrap_angle(angle - last_angle)
+
+
 class VelocityFilter:
     """Velocities (rad/s) of angles (rad) sampled every `period` (s), through wc s / (s + wc).
 
@@ -85,8 +92,8 @@ class VelocityFilter:
         if self._angles is None:
             self._velocities = np.zeros_like(angles)
         else:
-            self._velocities = (self.pole[..., None] * self._velocities
-                                + self.gain[..., None] * wrap_angle(angles - self._angles))
+            self._velocities = filtered_velocity(self._velocities, angles, self._angles,
+                                                 self.pole[..., None], self.gain[..., None])
         self._angles = angles
         return self._velocities
 

@@ -14,7 +14,6 @@ from qube_suite.randomization import (
     FilteredVelocity,
     ObservationDelay,
     ObservationNoise,
-    OneRow,
     Quantization,
     Saturation,
     Streams,
@@ -25,8 +24,8 @@ PERIOD = 0.004
 
 
 def one_qube(effects):
-    """A chain for one Qube, as a one-Qube domain gets it: a batch of one, floats in and out."""
-    return OneRow(Chain(effects))
+    """A chain for one Qube, as a one-Qube domain gets it: settings as numbers, floats in and out."""
+    return Chain(effects)
 
 
 def run(effects, voltages, task="swingup", seed=0, frequency=250.0):
@@ -346,3 +345,23 @@ def test_the_velocity_filter_effect_and_the_hardware_estimator_are_one_filter():
     hardware(angles[0])
     for state, angle in zip(states[1:], angles[1:], strict=True):
         np.testing.assert_array_equal(effect(state)[2:], hardware(angle))
+
+
+def test_one_qube_computes_on_python_floats(monkeypatch):
+    """A one-Qube chain takes and gives floats and computes on them without numpy's array functions (a
+    numpy call on one number costs about a microsecond, a step of the Qube ten)."""
+    rng = np.random.RandomState(0)
+    sensor = one_qube([Quantization(2048), FilteredVelocity(50.0, PERIOD), ObservationNoise([0.01] * 4, rng),
+                       ObservationDelay(1)])
+    actuator = one_qube([ActionDelay(1), VoltageOffset(0.1), DeadZone(0.2), Saturation(2.0)])
+    timing = one_qube([ControlJitter(0.1, rng)])
+
+    def no_arrays(*args, **kwargs):
+        raise AssertionError("a numpy array function on one Qube's floats")
+
+    for name in ("array", "asarray", "stack", "rint", "maximum", "copysign", "clip", "where"):
+        monkeypatch.setattr(np, name, no_arrays)
+    outputs = [*sensor.reset([0.1, 0.2, 0.3, 0.4]), *sensor([0.11, 0.19, 0.3, 0.4]),
+               *sensor([0.12, 0.18, 0.3, 0.4]), actuator.reset(0.0), actuator(1.5), actuator(-3.0),
+               timing(PERIOD)]
+    assert [type(value) for value in outputs] == [float] * len(outputs)

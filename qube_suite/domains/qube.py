@@ -478,8 +478,12 @@ def substeps_per_control_period(control_frequency: float) -> int:
 
 def split_step(duration):
     """A control step lasting `duration` (s; a number or an array, one per Qube) split into the fewest
-    equal physics steps of at most MAX_TIMESTEP: (their number, their timestep in s), as numpy values."""
-    nstep = np.maximum(1, np.ceil(duration / MAX_TIMESTEP - 1e-9)).astype(np.intp)
+    equal physics steps of at most MAX_TIMESTEP: (their number, their timestep in s), numbers or arrays."""
+    steps = duration / MAX_TIMESTEP - 1e-9
+    if type(steps) is np.ndarray:
+        nstep = np.maximum(1, np.ceil(steps)).astype(np.intp)
+    else:  # one Qube: Python's ceil, 20x faster than numpy's on a number (a jittered step 1.19x -> 1.03x)
+        nstep = max(1, math.ceil(steps))
     return nstep, duration / nstep
 
 

@@ -13,7 +13,7 @@ to the domain (`randomizer.py`).
 """
 
 from qube_suite.randomization.amplifier import DeadZone, Saturation, VoltageOffset
-from qube_suite.randomization.base import Chain, Effect, Field, OneRow, Streams
+from qube_suite.randomization.base import Chain, Effect, Field, Streams
 from qube_suite.randomization.catalog import EFFECTS
 from qube_suite.randomization.config import Randomization, load, parse
 from qube_suite.randomization.delays import ActionDelay, ObservationDelay
@@ -26,7 +26,7 @@ from qube_suite.randomization.timing import ControlJitter
 
 __all__ = [
     "EFFECTS", "PRESETS", "ActionDelay", "Chain", "ControlJitter", "DeadZone", "Distribution", "Effect",
-    "Field", "FilteredVelocity", "ObservationDelay", "ObservationNoise", "OneQube", "OneRow", "Quantization",
+    "Field", "FilteredVelocity", "ObservationDelay", "ObservationNoise", "OneQube", "Quantization",
     "Randomization", "Randomizer", "Sample", "Saturation", "Streams", "VoltageOffset",
     "load", "parse", "sample", "sample_effects", "sample_parameters",
 ]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from qube_suite.randomization.base import Effect, Field, per_env
+from qube_suite.randomization.base import Effect, Field, clip, copysign, maximum, number_or_array, per_env
 
 
 class VoltageOffset(Effect):
@@ -20,9 +20,9 @@ class VoltageOffset(Effect):
     per_env_settings = ("voltage",)
 
     def __init__(self, voltage: float | np.ndarray):
-        self.voltage = np.asarray(voltage, dtype=np.float64)
+        self.voltage = number_or_array(voltage)
 
-    def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+    def output(self, x, rows: np.ndarray | None):
         return x + per_env(self.voltage, rows)
 
 
@@ -36,10 +36,10 @@ class DeadZone(Effect):
     per_env_settings = ("voltage",)
 
     def __init__(self, voltage: float | np.ndarray):
-        self.voltage = np.asarray(voltage, dtype=np.float64)
+        self.voltage = number_or_array(voltage)
 
-    def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
-        return np.copysign(np.maximum(np.abs(x) - per_env(self.voltage, rows), 0.0), x)
+    def output(self, x, rows: np.ndarray | None):
+        return copysign(maximum(abs(x) - per_env(self.voltage, rows), 0.0), x)
 
 
 class Saturation(Effect):
@@ -51,8 +51,8 @@ class Saturation(Effect):
     per_env_settings = ("voltage",)
 
     def __init__(self, voltage: float | np.ndarray):
-        self.voltage = np.asarray(voltage, dtype=np.float64)
+        self.voltage = number_or_array(voltage)
 
-    def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+    def output(self, x, rows: np.ndarray | None):
         limit = per_env(self.voltage, rows)
-        return np.clip(x, -limit, limit)
+        return clip(x, -limit, limit)

@@ -1,24 +1,29 @@
 """The effect interface: a sensor or actuator imperfection that any Qube domain can apply to n Qubes.
 
-An effect transforms one signal once per control step, for n Qubes at once, on
-float64 arrays with one row per Qube: states of shape (n, 4), each
-[theta, alpha, dtheta, dalpha] (rad, rad/s; angles wrapped to (-pi, pi]), and
-motor voltages (V) or step durations (s) of shape (n,). A single Qube is a batch
-of one (`OneRow` applies effects to one Qube's floats):
+An effect transforms one signal once per control step: states [theta, alpha,
+dtheta, dalpha] (rad, rad/s; angles wrapped to (-pi, pi]), motor voltages (V) or
+step durations (s), of one Qube as Python floats (4 for a state, 1 otherwise) or of
+n Qubes as float64 arrays with one row per Qube, (n, 4) or (n,):
 
     y = effect.reset(x, rows=None)   # start afresh from x (the initial state, or 0 V); the output for x
     y = effect(x)                    # the output one control step later
 
-Settings are numbers shared by every Qube, or arrays with one entry per Qube
-along their first axis; memory (delay lines, filter states) lives in arrays
-shaped by the signal given to `reset`. `effect.reset(x, rows)` restarts only the
-Qubes `rows` (integer indices) from their signals `x` (first axis len(rows)) and
-returns their outputs; the others keep their memory. A caller that redraws the
-settings of some Qubes gives them to those rows first with
+Each effect's maths is written once, elementwise: it computes on a state's four
+components (`inward`), each a float for one Qube or a column of n values,
+and on a voltage or duration as a float or an array, so the same lines serve one
+Qube (fast Python arithmetic) and a batch (numpy).
+
+Settings are numbers shared by every Qube (one Qube's are numbers), or arrays
+with one entry per Qube along their first axis; memory (delay lines, filter
+states) takes the form of the signal given to `reset`. `effect.reset(x, rows)`
+restarts only the Qubes `rows` (integer indices) from their signals `x` (first
+axis len(rows)) and returns their outputs; the others keep their memory. A caller
+that redraws the settings of some Qubes gives them to those rows first with
 `effect.set_rows(rows, fresh)`, where `fresh` is the same effect built for
-len(rows) Qubes. Stochastic effects draw from one generator, or from `Streams`,
-one generator per Qube, so that each Qube draws the numbers it would alone.
-Effects never modify their input. `Chain` applies several effects in order.
+len(rows) Qubes (for one Qube: built with its numbers). Stochastic effects draw
+from one generator, or from `Streams`, one generator per Qube, so that each Qube
+draws the numbers it would alone. Effects never modify their input. `Chain`
+applies several effects in order.
 """
 
 from __future__ import annotations
@@ -68,7 +73,8 @@ class Effect:
     Subclasses set `name` (their key in a config's `effects`), `signal` (what they
     transform: "state", "voltage" or "duration"), `fields` and `stochastic`
     (whether they draw from a generator), and implement `output` if they have no
-    memory, or `reset` and `__call__` if they do.
+    memory, or `start` and `advance` if they do: on the signal in the form `inward`
+    gives, elementwise, so that one Qube's floats and arrays take the same lines.
     """
 
     name: ClassVar[str]
@@ -91,24 +97,113 @@ class Effect:
 
     def set_rows(self, rows: np.ndarray, fresh: Effect) -> None:
         """Give environments `rows` the settings of `fresh`, this effect built for len(rows)
-        environments; their memory restarts at the next `reset(x, rows)`."""
+        environments; their memory restarts at the next `reset(x, rows)`. Settings held as
+        numbers (one Qube's) are replaced."""
         for attribute in self.per_env_settings:
-            getattr(self, attribute)[rows] = getattr(fresh, attribute)
+            setting = getattr(self, attribute)
+            if type(setting) is np.ndarray:
+                setting[rows] = getattr(fresh, attribute)
+            else:
+                setattr(self, attribute, getattr(fresh, attribute))
 
-    def reset(self, x: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    def reset(self, x, rows: np.ndarray | None = None):
+        return outward(self.start(inward(x, self.signal), rows), x, self.signal)
+
+    def __call__(self, x):
+        return outward(self.advance(inward(x, self.signal)), x, self.signal)
+
+    def start(self, x, rows: np.ndarray | None):
+        """`reset` on the signal in the form effects compute on (`inward`)."""
         return self.output(x, rows)
 
-    def __call__(self, x: np.ndarray) -> np.ndarray:
+    def advance(self, x):
+        """`__call__` on the signal in the form effects compute on (`inward`)."""
         return self.output(x, None)
 
-    def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
-        """Output for the arrays `x` of a memoryless effect; `rows` selects per-environment settings."""
+    def output(self, x, rows: np.ndarray | None):
+        """Output of a memoryless effect for the signal `x` (`inward`'s form); `rows` selects
+        per-environment settings."""
         raise NotImplementedError
 
 
-def per_env(setting: np.ndarray, rows: np.ndarray | None, shared_ndim: int = 0) -> np.ndarray:
-    """`setting`, or its entries for `rows` when it holds one per environment (ndim > `shared_ndim`)."""
-    return setting if rows is None or setting.ndim == shared_ndim else setting[rows]
+def inward(x, signal: str):
+    """A signal in the form effects compute on: one Qube's floats as they are; arrays copied, a
+    state's split into its four components (`components`)."""
+    if type(x) is not np.ndarray:
+        return x
+    if signal != "state":
+        return np.array(x, dtype=np.float64)
+    return x.tolist() if x.ndim == 1 else list(np.array(x.T, dtype=np.float64))  # (4, n), C order
+
+
+def outward(y, x, signal: str):
+    """The output `y` of effects on the signal `x` in the form of `x` (inverse of `inward`)."""
+    if type(x) is not np.ndarray:
+        return y
+    if signal != "state":
+        return np.array(y, dtype=np.float64)
+    return np.stack(y, axis=-1) if x.ndim > 1 else np.array(y, dtype=np.float64)
+
+
+def components(values):
+    """The four components of a state-shaped setting or draw: floats from a list or a 1-D array
+    (one Qube's, or shared), columns from an (n, 4) array."""
+    if type(values) is not np.ndarray:
+        return values
+    return values.tolist() if values.ndim == 1 else list(values.T)
+
+
+def number_or_array(value, dtype=np.float64):
+    """A setting as effects hold it: a Python number if it is one (shared by every Qube, or one
+    Qube's), else an array with one entry per Qube."""
+    array = np.asarray(value, dtype=dtype)
+    return array.item() if array.ndim == 0 else array
+
+
+def shape(x) -> tuple[int, ...]:
+    """The shape of a signal's value: () for one Qube's float, (n,) for n Qubes' array."""
+    return x.shape if type(x) is np.ndarray else ()
+
+
+def per_env(setting, rows: np.ndarray | None):
+    """`setting`, or its entries for `rows` when it holds one per environment (an array)."""
+    return setting[rows] if rows is not None and type(setting) is np.ndarray else setting
+
+
+def with_rows(memory, rows: np.ndarray, values):
+    """A copy of the per-environment `memory` (an array) with `values` at `rows`; copying keeps
+    outputs that share the old array unchanged."""
+    memory = memory.copy()
+    memory[rows] = values
+    return memory
+
+
+# Elementwise arithmetic on one Qube's floats (Python's, the fast path) or on arrays (numpy's).
+
+def rint(x):
+    """x rounded to the nearest integer, halves to even (as a float for arrays, an int for floats)."""
+    return np.rint(x) if type(x) is np.ndarray else round(x)
+
+
+def maximum(x, y):
+    """The larger of `x` and `y`, elementwise for arrays."""
+    if type(x) is np.ndarray or type(y) is np.ndarray:
+        return np.maximum(x, y)
+    return max(x, y)
+
+
+def copysign(x, y):
+    """|x| with the sign of `y`."""
+    if type(x) is np.ndarray or type(y) is np.ndarray:
+        return np.copysign(x, y)
+    return math.copysign(x, y)
+
+
+def clip(x, low, high):
+    """`x` limited to [low, high]."""
+    if type(x) is np.ndarray or type(low) is np.ndarray:
+        return np.clip(x, low, high)
+    return min(max(x, low), high)
 
 
 class Streams:
@@ -149,35 +244,24 @@ def generator_of(rng, rows: np.ndarray | None):
 
 
 class Chain:
-    """Effects applied in order to the signals of n Qubes (float64 arrays, one row per Qube): a
-    domain's sensor, actuator or step-duration model; itself an effect."""
+    """Effects on one signal applied in order: a domain's sensor, actuator or step-duration model;
+    itself an effect, on one Qube's floats (the hook contract of one-Qube domains,
+    `set_sensor_model`, ...) or on arrays with one row per Qube (a batch's)."""
 
     def __init__(self, effects: Iterable[Effect]):
         self.effects = tuple(effects)
+        self.signal = self.effects[0].signal if self.effects else None
 
-    def reset(self, x, rows: np.ndarray | None = None) -> np.ndarray:
-        x = np.asarray(x, dtype=np.float64)
+    def reset(self, x, rows: np.ndarray | None = None):
+        one = type(x) is not np.ndarray  # one Qube's floats, the form effects compute on
+        y = x if one else inward(x, self.signal)
         for effect in self.effects:
-            x = effect.reset(x, rows)
-        return x
-
-    def __call__(self, x) -> np.ndarray:
-        x = np.asarray(x, dtype=np.float64)
-        for effect in self.effects:
-            x = effect(x)
-        return x
-
-
-class OneRow:
-    """A `Chain` applied to one Qube's signal as a batch of one: Python floats in and out (4 for a
-    state, 1 for a voltage or a duration), the hook contract of one-Qube domains (`set_sensor_model`,
-    `set_actuator_model`, `set_step_duration_model`)."""
-
-    def __init__(self, chain: Chain):
-        self.chain = chain
-
-    def reset(self, x):
-        return self.chain.reset(np.array([x], dtype=np.float64))[0].tolist()
+            y = effect.start(y, rows)
+        return y if one else outward(y, x, self.signal)
 
     def __call__(self, x):
-        return self.chain(np.array([x], dtype=np.float64))[0].tolist()
+        one = type(x) is not np.ndarray
+        y = x if one else inward(x, self.signal)
+        for effect in self.effects:
+            y = effect.advance(y)
+        return y if one else outward(y, x, self.signal)

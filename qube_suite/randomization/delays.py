@@ -6,7 +6,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from qube_suite.randomization.base import Effect, Field
+from qube_suite.randomization.base import Effect, Field, components, number_or_array, with_rows
 
 MAX_DELAY_SECONDS = 1.0
 """Longest delay (s) a config may give: 100 times the Qube's real loop latency, an eighth of an episode."""
@@ -41,40 +41,47 @@ class Delay(Effect):
         return cls(settings["steps"])
 
     def __init__(self, steps: int | np.ndarray):
-        self.steps = np.asarray(steps, dtype=np.intp)
-        if self.steps.ndim == 0:
-            smallest = largest = int(self.steps)
-        else:
-            smallest, largest = int(self.steps.min()), int(self.steps.max())
+        self.steps = number_or_array(steps, dtype=np.intp)
+        smallest, largest = int(np.min(self.steps)), int(np.max(self.steps))
         if smallest < 0:
             raise ValueError(f"{self.name}: steps must be >= 0, got {steps}")
         self._length = largest + 1
 
     def set_rows(self, rows: np.ndarray, fresh: Delay) -> None:
         super().set_rows(rows, fresh)
-        length = int(self.steps.max()) + 1
+        length = int(np.max(self.steps)) + 1
         if length > self._length and hasattr(self, "_line"):  # lengthen: newest entries kept, oldest repeated
-            oldest_first = np.roll(self._line, -(self._head + 1), axis=0)
-            padding = np.repeat(oldest_first[:1], length - self._length, axis=0)
-            self._line = np.concatenate([padding, oldest_first])
+            oldest_first = [(self._head + 1 + k) % self._length for k in range(self._length)]
+            oldest_first = [oldest_first[0]] * (length - self._length) + oldest_first
+            self._line = self._line[oldest_first] if self._per_env else [self._line[k] for k in oldest_first]
             self._head = length - 1
         self._length = max(self._length, length)
 
-    def reset(self, x: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    def start(self, x, rows: np.ndarray | None):
         if rows is None:
-            self._line = np.repeat(np.asarray(x)[None], self._length, axis=0)
             self._head = 0
-            self._envs = None if self.steps.ndim == 0 else np.arange(self.steps.shape[0])
+            self._per_env = type(self.steps) is np.ndarray
+            if self._per_env:  # the entries of each environment's delay, gathered from one array
+                self._line = np.repeat(np.asarray(x, dtype=np.float64)[None], self._length, axis=0)
+                self._envs = np.arange(self.steps.shape[0])
+            else:
+                self._line = [x] * self._length
+        elif self._per_env:
+            self._line[..., rows] = x
+        elif self.signal == "state":
+            self._line = [[with_rows(kept, rows, new) for kept, new in zip(entry, x, strict=True)]
+                          for entry in self._line]
         else:
-            self._line[:, rows] = x
+            self._line = [with_rows(entry, rows, x) for entry in self._line]
         return x
 
-    def __call__(self, x: np.ndarray) -> np.ndarray:
-        self._head = (self._head + 1) % self._length
-        self._line[self._head] = x
-        if self._envs is None:
-            return self._line[(self._head - int(self.steps)) % self._length].copy()
-        return self._line[(self._head - self.steps) % self._length, self._envs]
+    def advance(self, x):
+        self._head = head = (self._head + 1) % self._length
+        self._line[head] = x
+        if not self._per_env:
+            return self._line[(head - self.steps) % self._length]
+        delayed = self._line[(head - self.steps) % self._length, ..., self._envs]  # (n, 4) or (n,)
+        return components(delayed) if self.signal == "state" else delayed
 
 
 class ObservationDelay(Delay):

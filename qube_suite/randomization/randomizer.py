@@ -6,7 +6,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from qube_suite.randomization.base import Chain, OneRow, Streams
+from qube_suite.randomization.base import Chain, Streams
 from qube_suite.randomization.catalog import EFFECTS
 from qube_suite.randomization.config import Randomization
 from qube_suite.randomization.distributions import Distribution
@@ -25,7 +25,7 @@ class Randomizer:
     any episode. Hooks the config does not use are left alone, so a domain without
     randomization keeps its plain step path. A batch (`qube_suite.domains.qube_batch.QubeBatch`,
     with `num_worlds`) takes effects on arrays with one row per world; a one-Qube domain
-    is a batch of one (`OneQube`), whose hooks take one Qube's floats (`OneRow`).
+    is a batch of one (`OneQube`) whose effects hold numbers and run on its floats.
 
     World i draws from the random state it is given, and its noise and jitter come from
     a generator of its own (`Streams`) seeded by that draw, so world i of a batch
@@ -44,14 +44,15 @@ class Randomizer:
     def __init__(self, config: Randomization, domain, control_period: float):
         check_domain(config, domain)
         self.config = config
-        batch = domain if hasattr(domain, "num_worlds") else OneQube(domain)
+        self._one = not hasattr(domain, "num_worlds")
+        batch = OneQube(domain) if self._one else domain
         self._batch = batch
         self._control_period = control_period
         self._generators = [np.random.RandomState() for _ in range(batch.num_worlds)]  # reseeded per episode
         placeholder = sample_effects(config, np.random.RandomState(0))
-        streams = Streams(self._generators)
-        self._effects = {name: EFFECTS[name].from_settings(_repeated(settings, batch.num_worlds),
-                                                           control_period, streams)
+        rng = self._generators[0] if self._one else Streams(self._generators)
+        self._effects = {name: EFFECTS[name].from_settings(self._settings(settings, batch.num_worlds),
+                                                           control_period, rng)
                          for name, settings in placeholder.items()}
         self._redrawn = [name for name, settings in config.effects.items()
                          if any(isinstance(value, Distribution) for value in settings.values())]
@@ -71,16 +72,24 @@ class Randomizer:
             self._batch.set_parameters(world, drawn.parameters)
         rows = np.array([world])
         for name in self._redrawn:
-            fresh = EFFECTS[name].from_settings(_repeated(drawn.effects[name], 1), self._control_period, None)
+            settings = self._settings(drawn.effects[name], 1)
+            fresh = EFFECTS[name].from_settings(settings, self._control_period, None)
             self._effects[name].set_rows(rows, fresh)
         if drawn.seed is not None:
             self._generators[world].seed(drawn.seed)
         return drawn
 
+    def _settings(self, settings: Mapping, count: int) -> Mapping:
+        """An effect's settings for `count` worlds of the batch (arrays, one entry per world), or as
+        they are for one Qube."""
+        if self._one:
+            return settings
+        return {key: np.repeat(np.asarray(value)[None], count, axis=0) for key, value in settings.items()}
+
 
 class OneQube:
     """A one-Qube domain as a batch of one world, as `Randomizer` drives it: its parameters set for
-    world 0, its hooks given each `Chain` through `OneRow`."""
+    world 0, its hooks given each `Chain`."""
 
     num_worlds = 1
 
@@ -91,13 +100,13 @@ class OneQube:
         self.physics.set_parameters(parameters)
 
     def set_sensor_model(self, chain: Chain) -> None:
-        self.physics.set_sensor_model(OneRow(chain))
+        self.physics.set_sensor_model(chain)
 
     def set_actuator_model(self, chain: Chain) -> None:
-        self.physics.set_actuator_model(OneRow(chain))
+        self.physics.set_actuator_model(chain)
 
     def set_step_duration_model(self, chain: Chain) -> None:
-        self.physics.set_step_duration_model(OneRow(chain))
+        self.physics.set_step_duration_model(chain)
 
 
 def check_domain(config: Randomization, physics) -> None:
@@ -118,7 +127,3 @@ def check_domain(config: Randomization, physics) -> None:
             raise ValueError(f"{type(physics).__name__} cannot apply {', '.join(names)} "
                              f"(it has no {HOOKS[signal]})")
 
-
-def _repeated(settings: Mapping, count: int) -> dict[str, np.ndarray]:
-    """Effect settings for `count` environments: each value repeated along a new first axis."""
-    return {key: np.repeat(np.asarray(value)[None], count, axis=0) for key, value in settings.items()}

@@ -11,8 +11,18 @@ import numpy as np
 
 from qube_suite.angles import TAU, wrap_angle
 from qube_suite.parameters import ENCODER_COUNTS_PER_REVOLUTION
-from qube_suite.randomization.base import Effect, Field, generator_of, per_env
-from qube_suite.velocity_filter import VELOCITY_FILTER_CUTOFF, VelocityFilter
+from qube_suite.randomization.base import (
+    Effect,
+    Field,
+    components,
+    generator_of,
+    number_or_array,
+    per_env,
+    rint,
+    shape,
+    with_rows,
+)
+from qube_suite.velocity_filter import VELOCITY_FILTER_CUTOFF, VelocityFilter, filtered_velocity
 
 
 class Quantization(Effect):
@@ -27,13 +37,12 @@ class Quantization(Effect):
     per_env_settings = ("resolution",)
 
     def __init__(self, counts_per_revolution: int | np.ndarray = ENCODER_COUNTS_PER_REVOLUTION):
-        self.resolution = TAU / np.asarray(counts_per_revolution, dtype=np.float64)
+        self.resolution = number_or_array(TAU / np.asarray(counts_per_revolution, dtype=np.float64))
 
-    def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
-        resolution = per_env(self.resolution, rows)[..., None]
-        y = x.copy()
-        y[..., :2] = wrap_angle(resolution * np.rint(x[..., :2] / resolution))
-        return y
+    def output(self, x, rows: np.ndarray | None):
+        q = per_env(self.resolution, rows)
+        theta, alpha, dtheta, dalpha = x
+        return [wrap_angle(q * rint(theta / q)), wrap_angle(q * rint(alpha / q)), dtheta, dalpha]
 
 
 class FilteredVelocity(Effect):
@@ -49,24 +58,29 @@ class FilteredVelocity(Effect):
     fields = {"cutoff": Field("rad/s", "filter bandwidth a", default=VELOCITY_FILTER_CUTOFF,
                               minimum=0.0, exclusive_minimum=True)}
 
+    per_env_settings = ("pole", "gain")
+
     @classmethod
     def from_settings(cls, settings: Mapping, control_period: float, rng) -> FilteredVelocity:
         return cls(settings["cutoff"], control_period)
 
     def __init__(self, cutoff: float | np.ndarray, control_period: float):
-        self.filter = VelocityFilter(control_period, cutoff)
+        discrete = VelocityFilter(control_period, cutoff)
+        self.pole, self.gain = number_or_array(discrete.pole), number_or_array(discrete.gain)
 
-    def set_rows(self, rows: np.ndarray, fresh: FilteredVelocity) -> None:
-        for attribute in ("cutoff", "pole", "gain"):
-            getattr(self.filter, attribute)[rows] = getattr(fresh.filter, attribute)
-
-    def reset(self, x: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
-        self.filter.reset(x[..., :2], x[..., 2:], rows)
+    def start(self, x, rows: np.ndarray | None):
+        if rows is None:
+            self._memory = list(x)  # last angles and velocity estimates
+        else:
+            self._memory = [with_rows(kept, rows, new) for kept, new in zip(self._memory, x, strict=True)]
         return x
 
-    def __call__(self, x: np.ndarray) -> np.ndarray:
-        y = x.copy()
-        y[..., 2:] = self.filter(x[..., :2])
+    def advance(self, x):
+        theta, alpha, _, _ = x
+        last_theta, last_alpha, dtheta, dalpha = self._memory
+        self._memory = y = [theta, alpha,
+                            filtered_velocity(dtheta, theta, last_theta, self.pole, self.gain),
+                            filtered_velocity(dalpha, alpha, last_alpha, self.pole, self.gain)]
         return y
 
 
@@ -86,11 +100,12 @@ class ObservationNoise(Effect):
         return cls(settings["std"], rng)
 
     def __init__(self, std, rng):
-        self.std = np.asarray(std, dtype=np.float64)
+        std = np.asarray(std, dtype=np.float64)
+        self.std = std.tolist() if std.ndim == 1 else std  # shared (or one Qube's), or (n, 4)
         self._rng = rng
 
-    def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
-        noise = generator_of(self._rng, rows).standard_normal(x.shape)
-        y = x + per_env(self.std, rows, shared_ndim=1) * noise
-        y[..., :2] = wrap_angle(y[..., :2])
-        return y
+    def output(self, x, rows: np.ndarray | None):
+        theta, alpha, dtheta, dalpha = x
+        n0, n1, n2, n3 = components(generator_of(self._rng, rows).standard_normal(shape(theta) + (4,)))
+        s0, s1, s2, s3 = components(per_env(self.std, rows))
+        return [wrap_angle(theta + s0 * n0), wrap_angle(alpha + s1 * n1), dtheta + s2 * n2, dalpha + s3 * n3]

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from qube_suite.randomization.base import Effect, Field, generator_of, per_env
+from qube_suite.randomization.base import Effect, Field, generator_of, number_or_array, per_env, shape
 
 
 class ControlJitter(Effect):
@@ -26,9 +26,9 @@ class ControlJitter(Effect):
         return cls(settings["fraction"], rng)
 
     def __init__(self, fraction: float | np.ndarray, rng):
-        self.fraction = np.asarray(fraction, dtype=np.float64)
+        self.fraction = number_or_array(fraction)
         self._rng = rng
 
-    def output(self, x: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
-        draws = generator_of(self._rng, rows).random(np.shape(x))
+    def output(self, x, rows: np.ndarray | None):
+        draws = generator_of(self._rng, rows).random(shape(x) or None)  # a float for one Qube
         return x * (1.0 + per_env(self.fraction, rows) * (2.0 * draws - 1.0))
