@@ -147,7 +147,7 @@ class Environment(control.Environment):
             self._task.random.seed(seed)
         self._episode_seed = seed
         if self._randomizer is not None:
-            self._randomization_sample = self._randomizer.start_episode(self._task.random)
+            self._randomization_sample = self._randomizer.draw(self._task.random)
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics)
         self._physics.set_led(reward_colour(self._task.get_reward(self._physics)))

@@ -102,8 +102,9 @@ class QubeBatch:
         self._trajectory = np.empty((num_worlds, self._substeps, start.size))
         self._control = np.zeros((num_worlds, self._substeps, template.nu))
         self._voltage = np.zeros(num_worlds)
-        self.diverged = np.zeros(num_worlds, dtype=bool)
-        """Which worlds' simulation diverged in the last `step` (that step was undone for them)."""
+        self.physics_error = np.zeros(num_worlds, dtype=bool)
+        """Which worlds' simulation diverged in the last `step` (that step was undone for them): the
+        batch's `physics_error`, one flag per world where one Qube's says why, or None."""
         self._worlds = np.arange(num_worlds)
         self._nominal_durations = np.full(num_worlds, self._substeps * template.opt.timestep)
         """Each world's control period as the physics steps cover it (s)."""
@@ -155,7 +156,7 @@ class QubeBatch:
         All worlds advance in one rollout call (with a step-duration model, one per number of
         physics steps); then they are measured. A world whose simulation diverges (speeds
         beyond `qube.MAX_PLAUSIBLE_SPEED`, inf or NaN) goes back to its state before the
-        step, its time advanced, and is marked in `diverged`.
+        step, its time advanced, and is marked in `physics_error`.
         """
         volts = self._voltage
         motor = volts if self._actuator_model is None else self._actuator_model(volts)
@@ -257,11 +258,11 @@ class QubeBatch:
     # -- helpers ------------------------------------------------------------------------
 
     def _undo_diverged(self, after: np.ndarray, before: np.ndarray) -> None:
-        """Mark in `diverged` the worlds whose states `after` a step are implausible and give them
+        """Mark in `physics_error` the worlds whose states `after` a step are implausible and give them
         back their positions and velocities `before` it (their time stays advanced)."""
-        self.diverged = ~qube.plausible(after[:, self._dtheta], after[:, self._dalpha])
-        if self.diverged.any():
-            after[self.diverged, 1:] = before[self.diverged, 1:]
+        self.physics_error = ~qube.plausible(after[:, self._dtheta], after[:, self._dalpha])
+        if self.physics_error.any():
+            after[self.physics_error, 1:] = before[self.physics_error, 1:]
 
     def _own_model(self, world: int) -> mujoco.MjModel:
         """`world`'s model, copied from the shared one the first time it needs its own."""

@@ -107,6 +107,11 @@ PENDULUM_REST_TOLERANCE = 1
 count (the bench's sway lets its Coulomb friction stop it within a count of hanging, where a count may
 flicker). More means its zero is lost."""
 
+REST_CHECK_TIME = 0.2
+"""The encoder check reads the pendulum at 0 V until its counts have stayed within a count of their
+median for this long (s), then judges that median: a single reading may catch the last small swing of
+a pendulum the reset judged at rest, or a flicker of the bench's sway."""
+
 
 class _FullCollectionsHeld:
     """Python's full (oldest-generation) garbage collections held off while a board drives.
@@ -525,12 +530,22 @@ class Physics(MeasuredState, control.Physics):
         return abs(alpha) < math.radians(5) and abs(theta) < math.radians(15) and abs(dalpha) < 1.0
 
     def _check_pendulum_zero(self) -> None:
-        counts = (math.pi - abs(self._estimate[1])) / conventions.RADIANS_PER_COUNT
-        if counts > PENDULUM_REST_TOLERANCE + 1e-6:
+        window = max(1, round(REST_CHECK_TIME * self._frequency))
+        offsets: list[int] = []  # counts from hanging, signed
+        for _ in range(round(self._reset_timeout * self._frequency)):
             self._sample(0.0)
+            offsets = [*offsets[1 - window:], round(wrap_angle(self._estimate[1] - math.pi)
+                                                      / conventions.RADIANS_PER_COUNT)]
+            median = float(np.median(offsets))
+            if len(offsets) == window and max(abs(count - median) for count in offsets) <= 1:
+                break
+        else:
+            raise ResetError(f"reset failed: the pendulum did not come to rest for the encoder check within "
+                             f"{self._reset_timeout:g} s (counts from hanging: {offsets[-5:]})")
+        if abs(median) > PENDULUM_REST_TOLERANCE + 1e-6:
             raise EncoderCheckError(
-                f"the pendulum hangs at rest but its encoder reads {counts:.0f} counts from hanging (at most "
-                f"{PENDULUM_REST_TOLERANCE} allowed): its zero is lost. Close the environment, let the "
+                f"the pendulum hangs at rest but its encoder reads {abs(median):.0f} counts from hanging (at "
+                f"most {PENDULUM_REST_TOLERANCE} allowed): its zero is lost. Close the environment, let the "
                 "pendulum hang still, centre the arm and make a new one with domain_kwargs={'zero_encoders': "
                 "True}; domain_kwargs={'check_encoders': False} turns this check off")
 

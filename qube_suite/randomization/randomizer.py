@@ -61,7 +61,7 @@ class Randomizer:
             chain = [effect for name, effect in self._effects.items() if EFFECTS[name].signal == signal]
             getattr(batch, HOOKS[signal])(Chain(chain))
 
-    def start_episode(self, random: np.random.RandomState, world: int = 0) -> Sample:
+    def draw(self, random: np.random.RandomState, world: int = 0) -> Sample:
         """Draw `world`'s next episode from `random` and apply it; returns what was drawn.
 
         Call before the episode's initial state is set: the domain restarts the world's

@@ -193,7 +193,7 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
             restarting = self._ended.copy()  # NEXT_STEP: these worlds start over instead of stepping
         batch.step()
         self._step_counts += 1
-        diverged = batch.diverged if restarting is None else batch.diverged & ~restarting
+        diverged = batch.physics_error if restarting is None else batch.physics_error & ~restarting
         draws = {} if restarting is None else self._start(np.flatnonzero(restarting))
         rewards, terminated, truncated = judge_step(task, batch, diverged, self._step_counts,
                                                     self._steps_per_episode)
@@ -233,7 +233,7 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         for world in worlds.tolist():
             random = self._randoms[world]
             if self._randomizer is not None:
-                draws[world] = self._randomizer.start_episode(random, world)
+                draws[world] = self._randomizer.draw(random, world)
             if self._reset_hook is not None:
                 self._reset_hook(self._batch, world, random)
             self._task.initialize_episode(self._batch, world)
