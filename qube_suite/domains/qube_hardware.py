@@ -108,9 +108,10 @@ count (the bench's sway lets its Coulomb friction stop it within a count of hang
 flicker). More means its zero is lost."""
 
 REST_CHECK_TIME = 0.2
-"""The encoder check reads the pendulum at 0 V until its counts have stayed within a count of their
-median for this long (s), then judges that median: a single reading may catch the last small swing of
-a pendulum the reset judged at rest, or a flicker of the bench's sway."""
+"""The encoder check reads the pendulum, the dampen controller still driving, until its counts have
+stayed within a count of their median for this long (s), then judges that median: a single reading
+may catch the last small swing of a pendulum the reset judged at rest, or a flicker of the bench's
+sway."""
 
 
 class _FullCollectionsHeld:
@@ -532,8 +533,9 @@ class Physics(MeasuredState, control.Physics):
     def _check_pendulum_zero(self) -> None:
         window = max(1, round(REST_CHECK_TIME * self._frequency))
         offsets: list[int] = []  # counts from hanging, signed
+        controller = self._controllers["dampen"]  # still damping, as while it centred the arm
         for _ in range(round(self._reset_timeout * self._frequency)):
-            self._sample(0.0)
+            self._sample(controller(np.array(self._estimate)))
             offsets = [*offsets[1 - window:], round(wrap_angle(self._estimate[1] - math.pi)
                                                       / conventions.RADIANS_PER_COUNT)]
             median = float(np.median(offsets))
