@@ -109,7 +109,7 @@ RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
                   "log_std_init": -1.0, "ortho_init": False}}),
         # PPO from the imitated actor with small exploration noise (gSDE log-std -4, the imitation's -1)
         # and small steps: with -1 or -2, or a learning rate of 1e-4, it undoes the imitated feedback
-        Stage("swingup_adaptive", "swingup", 1_000_000, 3, init="imitation", randomization="wide",
+        Stage("ppo", "swingup", 1_000_000, 3, init="imitation", randomization="wide",
               hyperparameters={"history": 8, "init_log_std": -4.0, "learning_rate": 3e-5,
                                "clip_range": 0.1})),
         "ppo:swingup_adaptive: 100 % success on each of 10 held-out plants (benchmarks/held_out.py)"),
