@@ -72,8 +72,8 @@ TRAINING: dict[str, object] = {
     "cable spring only": {"parameters": {"cable_stiffness": _SIM2REAL["cable_stiffness"]}},
 }
 """Training run name -> randomization."""
-ADAPTIVE = RECIPES["swingup_adaptive"].stages[-1]
-"""The adaptive row is trained as `ppo:swingup_adaptive` is (its recipe's stage), with the row's seed."""
+ADAPTIVE = RECIPES["swingup_adaptive"].stages[0]
+"""The adaptive row is trained as `ppo:swingup_adaptive`'s imitation stage is, with the row's seed."""
 MODEL_BASED = ("model-based (nominal)", "model-based (calibrated)")
 """Rows of the swing-up controller, designed for the nominal model or for each plant's calibration."""
 CALIBRATED = "calibrated fine-tuning"

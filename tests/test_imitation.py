@@ -82,6 +82,11 @@ def test_a_tiny_imitation_fits_the_teacher_and_ppo_starts_from_it_with_the_actor
     before = policy.weights[0].copy()
     result = training.train("swingup", steps=512, init=run, out=tmp_path / "ppo", evaluations=1,
                             eval_episodes=1, checkpoints=1, progress=False, hyperparameters={
-                                "history": 2, "n_steps": 64, "num_envs": 4, "batch_size": 256})
+                                "history": 2, "n_steps": 64, "num_envs": 4, "batch_size": 256,
+                                "init_log_std": -4.0})
     after = load_policy(result.final_policy).weights[0]
     np.testing.assert_array_equal(after, before)  # within VALUE_WARMUP_STEPS the actor stays as imitated
+    from stable_baselines3 import PPO
+
+    log_std = PPO.load(result.directory / "model.zip", device="cpu").policy.log_std.detach().numpy()
+    np.testing.assert_array_equal(log_std, np.full_like(log_std, -4.0))  # the imitation's was -1

@@ -29,6 +29,8 @@ def test_bad_arguments_fail_before_training():
         training.train("juggle")
     with pytest.raises(ValueError, match="valid"):
         training.train("balance", randomization={"parameters": {"pendulum_weight": 1.0}})
+    with pytest.raises(ValueError, match="init_log_std needs init to be a run's directory"):
+        training.train("balance", hyperparameters={"init_log_std": -4.0})
 
 
 def observations(size, count=64):

@@ -84,7 +84,9 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
             during training, over this many episodes each.
         checkpoints: save the model this many times during training.
         progress: show progress on stderr (a bar on a terminal, a line per 10 % otherwise).
-        hyperparameters: overrides of `HYPERPARAMETERS[algo]`.
+        hyperparameters: overrides of `HYPERPARAMETERS[algo]`; and `init_log_std`: with
+            `init` a run's directory, the exploration noise's log-std to start from
+            (default: the run's own).
         task_kwargs: task settings for training and evaluation, e.g. a follow task's
             target schedule (`{"target": "steps"}`); as `suite.load`, without `random`.
         init: directory of a previous run of `algo` on a task with the same
@@ -132,6 +134,8 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         if missing:
             raise ValueError(f"init: {init} is not a finished training run (no {', '.join(missing)}) "
                              "nor a policy file")
+    if (hyperparameters or {}).get("init_log_std") is not None and not isinstance(init, pathlib.Path):
+        raise ValueError(f"init_log_std needs init to be a run's directory, got init={init!r}")
     require_rl()
     return _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
                   eval_episodes, checkpoints, progress, {**HYPERPARAMETERS[algo], **(hyperparameters or {})},
@@ -159,6 +163,7 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     num_envs = num_envs or settings.pop("num_envs")
     settings.pop("num_envs", None)
     history = settings.pop("history", 0)
+    init_log_std = settings.pop("init_log_std", None)
     if algo == "ppo":  # minibatches no larger than a rollout
         settings["batch_size"] = min(settings["batch_size"], settings["n_steps"] * num_envs)
     env_kwargs = {"domain": domain, "randomization": randomization, "domain_kwargs": domain_kwargs,
@@ -189,6 +194,8 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
         model = algorithm("MlpPolicy", venv, seed=seed, device="cpu", policy_kwargs=policy_kwargs, **settings)
     elif isinstance(init, pathlib.Path):
         model = warm_start.load_model(algorithm, init, venv, seed, settings)
+        if init_log_std is not None:  # a warm start's exploration noise, set afresh
+            warm_start.set_log_std(model, init_log_std)
     else:
         model, venv = warm_start.from_policy(algorithm, init, venv, seed, settings, policy_kwargs, history)
     if init is not None and (not isinstance(init, pathlib.Path) or warm_start.imitation_run(init)):

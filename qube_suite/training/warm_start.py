@@ -170,6 +170,14 @@ def from_policy(algorithm, policy: MLPPolicy, venv: VecEnv, seed: int, settings:
     return model, normalized
 
 
+def set_log_std(model, log_std: float) -> None:
+    """Sets every entry of a model's exploration log-std (natural log of the noise scale) to `log_std`."""
+    import torch
+
+    with torch.no_grad():
+        model.policy.log_std.fill_(float(log_std))
+
+
 def actor_parameters(model) -> list:
     """The parameters of a PPO model's actor (its MLP, action head and exploration noise)."""
     policy = model.policy
