@@ -14,9 +14,9 @@ directory holds a finished run (`training.json`) is not run again, and an
 interrupted stage continues from its latest checkpoint (`train(resume=True)`),
 so an interrupted recipe resumes where it was, to within a checkpoint.
 
-Expected wall times are those of the runs that made the shipped policies on a
-2-core machine shared with other work (PPO, 64 vector worlds); an idle machine is
-faster.
+Expected wall times were measured by running each recipe on a 2-core machine,
+one training job on one core while the other core trained too (PPO, 64 vector
+worlds, 9 to 19 k steps/s; docs/transfer.md); a busier machine is slower.
 """
 
 from __future__ import annotations
@@ -77,30 +77,30 @@ class Recipe:
 
 
 def _swingup_chain() -> tuple[Stage, ...]:
-    return (Stage("balance", "balance", 500_000, 6),
-            Stage("swingup_nominal", "swingup", 5_000_000, 9, init="balance"),
-            Stage("swingup", "swingup", 2_000_000, 6, init="swingup_nominal", randomization="sim2real",
+    return (Stage("balance", "balance", 500_000, 1.8),
+            Stage("swingup_nominal", "swingup", 5_000_000, 10, init="balance"),
+            Stage("swingup", "swingup", 2_000_000, 4, init="swingup_nominal", randomization="sim2real",
                   seed=1))
 
 
 RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
-    Recipe("balance", (Stage("balance", "balance", 500_000, 6),),
+    Recipe("balance", (Stage("balance", "balance", 500_000, 1.8),),
            "ppo:balance: 2044 in simulation, 100 % success on both domains"),
-    Recipe("dampen", (Stage("dampen", "dampen", 700_000, 8, keep="best_policy.npz"),),
+    Recipe("dampen", (Stage("dampen", "dampen", 700_000, 0.6, keep="best_policy.npz"),),
            "ppo:dampen: 1944 in simulation, 100 % success on both domains (best evaluation at 0.6 M steps)"),
     Recipe("balance_follow", (
-        Stage("balance_follow_nominal", "balance_follow", 1_500_000, 9),
-        Stage("balance_follow", "balance_follow", 1_000_000, 4, init="balance_follow_nominal",
+        Stage("balance_follow_nominal", "balance_follow", 1_500_000, 1.1),
+        Stage("balance_follow", "balance_follow", 1_000_000, 0.8, init="balance_follow_nominal",
               randomization="sim2real", keep="best_policy.npz")),
         "ppo:balance_follow: 1959 in simulation, 1950 on the substitute, 100 % success"),
     Recipe("swingup", _swingup_chain(),
            "ppo:swingup: 1822 in simulation, 1824 on the substitute, 100 % success"),
     Recipe("swingup_follow", (*_swingup_chain(), Stage(
-        "swingup_follow", "swingup_follow", 2_000_000, 6, init="swingup", randomization="sim2real", seed=1,
+        "swingup_follow", "swingup_follow", 2_000_000, 2, init="swingup", randomization="sim2real", seed=1,
         keep="best_policy.npz")),
         "ppo:swingup_follow: 1816 in simulation, 1808 on the substitute, 100 % success"),
-    Recipe("rotor", (Stage("spin", "swingup", 1_500_000, 3, seed=1),
-                     Stage("rotor", "rotor", 1_500_000, 3, init="spin", keep="best_policy.npz")),
+    Recipe("rotor", (Stage("spin", "swingup", 1_500_000, 1.3, seed=1),
+                     Stage("rotor", "rotor", 1_500_000, 1.2, init="spin", keep="best_policy.npz")),
            "ppo:rotor: 60 revolutions in simulation, 17 on the substitute, 100 % success"),
     Recipe("swingup_adaptive", (
         Stage("imitation", "swingup", 2_000_000, 10, teacher="swingup", randomization="wide",
@@ -109,7 +109,7 @@ RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
                   "log_std_init": -1.0, "ortho_init": False}}),
         # PPO from the imitated actor with small exploration noise (gSDE log-std -4, the imitation's -1)
         # and small steps: with -1 or -2, or a learning rate of 1e-4, it undoes the imitated feedback
-        Stage("ppo", "swingup", 1_000_000, 3, init="imitation", randomization="wide",
+        Stage("ppo", "swingup", 1_000_000, 1.3, init="imitation", randomization="wide",
               hyperparameters={"history": 8, "init_log_std": -4.0, "learning_rate": 3e-5,
                                "clip_range": 0.1})),
         "ppo:swingup_adaptive: 100 % success on each of 10 held-out plants (benchmarks/held_out.py)"),
