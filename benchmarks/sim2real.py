@@ -15,8 +15,8 @@ trains each N times (seeds 0 to N-1). Runs already in `--runs` are reused.
 
 Rows without training: the calibrated rows (`--calibrated N`) calibrate each of
 the first N held-out plants (the one-minute experiment on the substitute with
-that plant) and fine-tune `ppo:swingup` under a randomization centred on the
-calibration (`--calibrated-steps`), scored on that plant; the model-based
+that plant) and fine-tune `ppo:swingup_adaptive` under a randomization centred on the
+calibration (`--calibrated-steps`; `calibrated.fine_tuning`), scored on that plant; the model-based
 swing-up controller with nominal parameters and with each plant's calibration;
 and `--policies` (files or shipped names) as they are.
 Then scores each run's final policy over seeded episodes on the hardware substitute
@@ -77,7 +77,7 @@ ADAPTIVE = RECIPES["swingup_adaptive"].stages[0]
 MODEL_BASED = ("model-based (nominal)", "model-based (calibrated)")
 """Rows of the swing-up controller, designed for the nominal model or for each plant's calibration."""
 CALIBRATED = "calibrated fine-tuning"
-"""The row of `ppo:swingup` fine-tuned for each plant's calibration (one run per plant)."""
+"""The row of `ppo:swingup_adaptive` fine-tuned for each plant's calibration (one run per plant)."""
 MAIN = ("nominal", "mild", "moderate", "sim2real", "wide", "adaptive")
 """Runs scored on every condition; the others (ablations) on the hardware substitute only."""
 
@@ -166,7 +166,8 @@ def train_one(job: dict) -> None:
 
 def calibrate_plant(job: dict) -> None:
     """Calibrate the substitute with plant `job["plant"]` (the one-minute experiment) into
-    `job["out"]`, and if `job["steps"]`, fine-tune `ppo:swingup` for it into the same directory."""
+    `job["out"]`, and if `job["steps"]`, fine-tune for it into the same directory (from
+    `ppo:swingup_adaptive`, as `train(calibration=...)` does without init)."""
     from qube_suite import calibration
     from qube_suite.training import train
 
@@ -176,9 +177,9 @@ def calibrate_plant(job: dict) -> None:
                                    recording=out / "calibration.jsonl")
     result.save(out / "calibration.yaml")
     if job["steps"]:
-        print(f"fine-tuning ppo:swingup for {out.name} ({job['steps']} steps)", flush=True)
-        train("swingup", steps=job["steps"], seed=0, calibration=out / "calibration.yaml", init="ppo:swingup",
-              progress=False, out=out)
+        print(f"fine-tuning ppo:swingup_adaptive for {out.name} ({job['steps']} steps)", flush=True)
+        train("swingup", steps=job["steps"], seed=0, calibration=out / "calibration.yaml", progress=False,
+              out=out)
 
 
 def calibrate_missing(runs: pathlib.Path, held_out_count: int, fine_tuned: int, steps: int,

@@ -466,7 +466,6 @@ SINGLE_RUN_OPTIONS = ("algo", "steps", "seed", "randomization", "domain", "num_e
 
 
 def _train(args: argparse.Namespace) -> int:
-    from qube_suite import policies
     from qube_suite.training import recipes, train
 
     if args.list_recipes:
@@ -483,9 +482,7 @@ def _train(args: argparse.Namespace) -> int:
                              eval_episodes=args.eval_episodes, checkpoints=args.checkpoints)
         print(f"recipe {recipe} done; policy {policy}")
         return 0
-    init = args.init
-    if args.calibration is not None and init is None and f"ppo:{args.task}" in policies.shipped():
-        init = f"ppo:{args.task}"  # fine-tune the shipped policy for the calibrated Qube
+    init = args.init  # with a calibration and no init, train fine-tunes the task's (adaptive) policy
     result = train(args.task, algo=args.algo or "ppo", steps=args.steps or 2_000_000, seed=args.seed or 0,
                    domain=args.domain or "qube", calibration=args.calibration,
                    randomization=args.randomization, out=args.out, num_envs=args.num_envs,
@@ -535,7 +532,8 @@ def _add_train(commands) -> None:
                                "randomization; or from the actor of a PPO policy file or shipped policy")
     training.add_argument("--calibration", default=None, metavar="FILE.yaml",
                           help="train for the Qube of this calibration ('qube-suite calibrate'): under a "
-                               "randomization centred on it, from the task's shipped policy unless --init")
+                               "randomization centred on it, from the task's adaptive policy "
+                               "(ppo:swingup_adaptive) or else its shipped one, unless --init")
     training.add_argument("--history", type=int, default=None, metavar="K",
                           help="the policy also sees its last K observations and voltages (default: 0)")
     training.add_argument("--out", default=None, help="run directory (default: runs/ALGO_TASK_SEED; of a "
@@ -682,7 +680,8 @@ def _add_adapt(commands) -> None:
     adapt.add_argument("--domain", choices=("qube_hardware",), default="qube_hardware",
                        help="where the Qube is: a board (the substitute unless --board)")
     _add_hardware_arguments(adapt)
-    adapt.add_argument("--init", default=None, help="policy to fine-tune (default: ppo:TASK)")
+    adapt.add_argument("--init", default=None,
+                       help="policy to fine-tune (default: ppo:TASK_adaptive if shipped, else ppo:TASK)")
     adapt.add_argument("--seconds", type=_positive_float, default=60.0,
                        help="calibration experiment, at most 60 s (default: 60)")
     adapt.add_argument("--steps", type=_positive_int, default=2_000_000,

@@ -4,14 +4,17 @@ and `adapt` (calibrate, fine-tune, evaluate) on the hardware substitute in a sho
 import importlib.util
 import json
 
+import numpy as np
 import pytest
 
 from qube_suite import cli, parameters, training
 from qube_suite.calibration.calibration_file import Calibration
 from qube_suite.calibration.calibration_file import load as load_calibration
+from qube_suite.policies import load_policy
 from qube_suite.randomization import load as load_randomization
 from qube_suite.randomization.presets import PRESETS
 from qube_suite.training import calibrated
+from qube_suite.training.recipes import RECIPES
 
 HAVE_RL = all(importlib.util.find_spec(name) for name in training.RL_EXTRA)
 needs_rl = pytest.mark.skipif(not HAVE_RL, reason="needs the rl extra")
@@ -54,14 +57,14 @@ def test_train_refuses_a_randomization_beside_a_calibration(tmp_path):
         training.train("swingup", calibration=path, randomization="wide")
 
 
-def test_train_with_a_calibration_fine_tunes_the_shipped_policy(monkeypatch, tmp_path):
+def test_train_with_a_calibration_leaves_the_choice_of_init_to_train(monkeypatch, tmp_path):
     calls = []
     result = training.TrainingResult(tmp_path, tmp_path, tmp_path, 1, 0.0, 0.0)
     monkeypatch.setattr(training, "train", lambda task, **kwargs: calls.append((task, kwargs)) or result)
     assert cli.main(["train", "--task", "swingup", "--calibration", "my_qube.yaml"]) == 0
     assert cli.main(["train", "--task", "swingup", "--calibration", "q.yaml", "--init", "runs/mine"]) == 0
     assert [(task, kw["calibration"], kw["init"]) for task, kw in calls] == [
-        ("swingup", "my_qube.yaml", "ppo:swingup"), ("swingup", "q.yaml", "runs/mine")]
+        ("swingup", "my_qube.yaml", None), ("swingup", "q.yaml", "runs/mine")]  # train picks the init
 
 
 @pytest.mark.slow
@@ -74,11 +77,13 @@ def test_adapt_calibrates_fine_tunes_and_evaluates_on_the_substitute(tmp_path, c
     estimate = load_calibration(report.calibration).parameters["pendulum_mass"]
     assert estimate == pytest.approx(0.024 * 1.2, rel=0.1)
     record = json.loads((tmp_path / "fine_tune" / "training.json").read_text())
-    assert record["calibration"] == str(report.calibration) and record["init"] == "ppo:swingup"
+    assert record["calibration"] == str(report.calibration) and record["init"] == "ppo:swingup_adaptive"
+    assert record["hyperparameters"]["history"] == 8 and record["hyperparameters"]["n_steps"] == 256
     saved = json.loads((tmp_path / "adapt.json").read_text())
-    assert saved["before"]["policy"] == "ppo:swingup" and saved["after"]["policy"] == str(report.policy)
+    assert saved["before"]["policy"] == "ppo:swingup_adaptive"
+    assert saved["after"]["policy"] == str(report.policy) and load_policy(report.policy).history == 8
     assert saved["before"]["episodes"] == 1 and 0.0 <= saved["after"]["success_rate"] <= 1.0
-    assert "| before: ppo:swingup |" in report.table()
+    assert "| before: ppo:swingup_adaptive |" in report.table()
 
 
 def test_the_adapt_command_passes_the_board_and_the_short_mode_on(monkeypatch, tmp_path, capsys):
@@ -95,3 +100,40 @@ def test_the_adapt_command_passes_the_board_and_the_short_mode_on(monkeypatch, t
     assert args == ("swingup", "qube_hardware", {"board": "simulated"})
     assert (kwargs["seconds"], kwargs["steps"], kwargs["episodes"]) == (20.0, 1000, 2)
     assert "| after: p.npz | 1800 | 100 % of 2 |" in capsys.readouterr().out
+
+
+def test_calibrated_runs_start_from_the_adaptive_policy_with_its_fine_tuning_settings():
+    init, settings = calibrated.fine_tuning("swingup", {"learning_rate": 1e-5})
+    stage = RECIPES["swingup_adaptive"].stages[-1]  # the recipe's PPO stage
+    assert init == "ppo:swingup_adaptive" and settings["history"] == 8
+    assert settings == {**stage.hyperparameters, "learning_rate": 1e-5}  # given ones win
+    assert calibrated.fine_tuning("balance") == ("ppo:balance", {})  # no adaptive balance policy
+    assert calibrated.fine_tuning("rotor", {"n_steps": 64}) == ("ppo:rotor", {"n_steps": 64})
+
+
+@needs_rl
+def test_a_calibrated_run_fine_tunes_the_adaptive_policy_and_exports_its_history(tmp_path):
+    from qube_suite.training import warm_start
+
+    path = tmp_path / "my_qube.yaml"
+    heavy_qube().save(path)
+    result = training.train("swingup", steps=512, calibration=path, out=tmp_path / "run", num_envs=2,
+                            evaluations=1, eval_episodes=1, checkpoints=1, progress=False,
+                            hyperparameters={"n_steps": 256})
+    assert result.steps < warm_start.VALUE_WARMUP_STEPS  # the actor stayed frozen: the shipped one
+    shipped, tuned = load_policy("ppo:swingup_adaptive"), load_policy(result.final_policy)
+    record = tuned.meta["training"]
+    assert record["init"] == "ppo:swingup_adaptive" and record["calibration"] == str(path)
+    assert tuned.history == shipped.history == 8
+    assert record["hyperparameters"]["clip_range"] == 0.1 and record["hyperparameters"]["n_steps"] == 256
+    for new, old in zip(tuned.weights, shipped.weights, strict=True):
+        np.testing.assert_array_equal(new, old)
+    # the normalisation is the file's, not updated by the run's states: the same actions over an
+    # episode's first steps, history included
+    np.testing.assert_array_equal(tuned.observation_mean, shipped.observation_mean)
+    np.testing.assert_array_equal(tuned.observation_var, shipped.observation_var)
+    rng = np.random.default_rng(0)
+    states = rng.normal(size=(4, 4)) * [0.3, 0.2, 1.0, 2.0]
+    for _ in range(12):
+        np.testing.assert_array_equal(tuned.actions(states), shipped.actions(states))
+        states = states + 0.02

@@ -29,7 +29,7 @@ def test_bad_arguments_fail_before_training():
         training.train("juggle")
     with pytest.raises(ValueError, match="valid"):
         training.train("balance", randomization={"parameters": {"pendulum_weight": 1.0}})
-    with pytest.raises(ValueError, match="init_log_std needs init to be a run's directory"):
+    with pytest.raises(ValueError, match="init_log_std is the exploration noise of a warm start: give init"):
         training.train("balance", hyperparameters={"init_log_std": -4.0})
 
 

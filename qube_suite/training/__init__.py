@@ -63,6 +63,15 @@ def _describe(randomization: Any) -> Any:
     return "custom"
 
 
+def _init_history(init: pathlib.Path | policies.MLPPolicy) -> int:
+    """The observation history of a policy file, or of the run in a directory (0 if it has none)."""
+    if isinstance(init, policies.MLPPolicy):
+        return init.history
+    record = init / "training.json"
+    return int(json.loads(record.read_text()).get("hyperparameters", {}).get("history", 0)
+               if record.is_file() else 0)
+
+
 def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, randomization: Any = None,
           domain: str = "qube", out: str | pathlib.Path | None = None, num_envs: int | None = None,
           domain_kwargs: dict[str, Any] | None = None, evaluations: int = 20, eval_episodes: int = 8,
@@ -85,8 +94,9 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         checkpoints: save the model this many times during training.
         progress: show progress on stderr (a bar on a terminal, a line per 10 % otherwise).
         hyperparameters: overrides of `HYPERPARAMETERS[algo]`; and `init_log_std`: with
-            `init` a run's directory, the exploration noise's log-std to start from
-            (default: the run's own).
+            `init`, the exploration noise's log-std to start from (default: a run's own;
+            from a policy file, `policy_kwargs`' `log_std_init`). `history` defaults to
+            the init's.
         task_kwargs: task settings for training and evaluation, e.g. a follow task's
             target schedule (`{"target": "steps"}`); as `suite.load`, without `random`.
         init: directory of a previous run of `algo` on a task with the same
@@ -94,7 +104,8 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
             history; training starts from its `model.zip` and `vecnormalize.pkl`
             (the network's shape is that run's; every other hyperparameter is this
             run's). Or a PPO policy file or shipped policy name: its actor and
-            normalisation, with a fresh value network (`warm_start.from_policy`).
+            normalisation, with a fresh value network (`warm_start.from_policy`);
+            a policy with history needs the same history (the default).
         exploring_starts: fraction of training episodes that start anywhere, in
             simulation (default: the task's, `EXPLORING_STARTS`).
         resume: if `out` holds checkpoints of an interrupted run (with these
@@ -102,7 +113,9 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
             evaluations kept; otherwise start as usual.
         calibration: a calibration file (`qube_suite.calibration`) to train for, under
             a randomization centred on it (`calibrated.randomization_for`) instead of
-            `randomization`.
+            `randomization`; without `init`, PPO fine-tunes the task's shipped policy
+            (the adaptive one if there is one, with its fine-tuning hyperparameters under
+            `hyperparameters`: `calibrated.fine_tuning`).
     """
     if algo not in HYPERPARAMETERS:
         raise ValueError(f"unknown algorithm {algo!r}; valid: {', '.join(HYPERPARAMETERS)}")
@@ -113,9 +126,11 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
     if calibration is not None:
         if randomization is not None:
             raise ValueError("give a randomization or a calibration to centre one on, not both")
-        from qube_suite.training.calibrated import randomization_for
+        from qube_suite.training.calibrated import fine_tuning, randomization_for
 
         randomization = randomization_for(calibration)
+        if init is None and algo == "ppo":
+            init, hyperparameters = fine_tuning(task, hyperparameters)
     if randomization is not None:
         randomization_configs.load(randomization)  # a bad config fails here, before any environment
     if exploring_starts is not None and not 0.0 <= exploring_starts <= 1.0:
@@ -134,8 +149,10 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         if missing:
             raise ValueError(f"init: {init} is not a finished training run (no {', '.join(missing)}) "
                              "nor a policy file")
-    if (hyperparameters or {}).get("init_log_std") is not None and not isinstance(init, pathlib.Path):
-        raise ValueError(f"init_log_std needs init to be a run's directory, got init={init!r}")
+    if (hyperparameters or {}).get("init_log_std") is not None and init is None:
+        raise ValueError("init_log_std is the exploration noise of a warm start: give init")
+    if init is not None and "history" not in (hyperparameters or {}):  # the init's history goes on
+        hyperparameters = {**(hyperparameters or {}), "history": _init_history(init)}
     require_rl()
     return _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
                   eval_episodes, checkpoints, progress, {**HYPERPARAMETERS[algo], **(hyperparameters or {})},
@@ -198,6 +215,8 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
             warm_start.set_log_std(model, init_log_std)
     else:
         model, venv = warm_start.from_policy(algorithm, init, venv, seed, settings, policy_kwargs, history)
+        if init_log_std is not None:
+            warm_start.set_log_std(model, init_log_std)
     if init is not None and (not isinstance(init, pathlib.Path) or warm_start.imitation_run(init)):
         frozen = [FrozenUntil(warm_start.actor_parameters(model), warm_start.VALUE_WARMUP_STEPS)]
     resumed = int(model.num_timesteps) if checkpoint is not None else 0

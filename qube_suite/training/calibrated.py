@@ -1,7 +1,7 @@
 """Training for one Qube: a randomization centred on its calibration, and the whole loop on its board.
 
     from qube_suite.training import calibrated, train
-    train("swingup", calibration="my_qube.yaml", init="ppo:swingup", steps=2_000_000)
+    train("swingup", calibration="my_qube.yaml", steps=1_000_000)   # from ppo:swingup_adaptive
     report = calibrated.adapt("swingup", "qube_hardware", {"board": "qube_servo2_usb"})
 
 `randomization_for` turns a calibration (`qube_suite.calibration`) into a
@@ -10,6 +10,12 @@ interval widened `WIDTH` times, and at least +-`MINIMUM_SPREAD` of the estimate
 (an interval only says how well one recording pins the value; a Qube warms up,
 its friction changes from run to run); the parameters a calibration does not
 estimate, and the sensor and actuator effects, as in the `sim2real` preset.
+`fine_tuning` says what a calibrated run starts from: the task's adaptive policy
+(`ppo:<task>_adaptive`, observation history included) with the hyperparameters of
+the PPO stage of its recipe (small exploration noise, small steps), or else the
+task's shipped policy. Fine-tuning the memoryless `ppo:swingup` this way made it
+worse on the held-out plants (docs/transfer.md); the adaptive policy already
+swings them up, and keeps doing so.
 `adapt` runs the loop a lab runs on a Qube nobody described: calibrate it (the
 excitation experiment on its board), fine-tune a policy under the randomization
 centred on that calibration, and evaluate the policy before and after on the
@@ -29,6 +35,7 @@ from typing import Any
 from qube_suite.calibration.calibration_file import Calibration
 from qube_suite.calibration.calibration_file import load as load_calibration
 from qube_suite.randomization.presets import PRESETS
+from qube_suite.training.recipes import RECIPES
 
 WIDTH = 2.0
 """Each estimated parameter is drawn from its 95 % interval widened this many times about the estimate ..."""
@@ -52,6 +59,22 @@ def randomization_for(calibration: Calibration | str | os.PathLike, width: float
         spec["high"] = max(spec["high"], value * (1.0 + minimum_spread))
         config["parameters"][name] = spec
     return config
+
+
+def fine_tuning(task: str, hyperparameters: Mapping[str, Any] | None = None
+                ) -> tuple[str | None, dict[str, Any]]:
+    """(init, hyperparameters) of a calibrated PPO run on `task` given no init: the shipped policy
+    `ppo:<task>_adaptive` with the hyperparameters of its recipe's last stage, under `hyperparameters`;
+    else the shipped `ppo:<task>` with `hyperparameters`; else (None: from scratch, `hyperparameters`)."""
+    from qube_suite import policies
+
+    given = dict(hyperparameters or {})
+    adaptive = f"{task}_adaptive"
+    if f"ppo:{adaptive}" in policies.shipped() and adaptive in RECIPES:
+        return f"ppo:{adaptive}", {**RECIPES[adaptive].stages[-1].hyperparameters, **given}
+    if f"ppo:{task}" in policies.shipped():
+        return f"ppo:{task}", given
+    return None, given
 
 
 @dataclasses.dataclass
@@ -80,18 +103,20 @@ def adapt(task: str = "swingup", domain: str = "qube_hardware",
           seconds: float = 60.0, episodes: int = 10, seed: int = 0, progress: bool = True,
           **train_kwargs: Any) -> AdaptReport:
     """Calibrate the Qube of `domain` (`domain_kwargs`: its board) with a `seconds` experiment, fine-tune
-    `init` (default: the shipped policy `ppo:<task>`) for `steps` under `randomization_for` the
-    calibration, in simulation, and evaluate both policies for `episodes` episodes on the board.
+    `init` (default: `fine_tuning(task)`'s, `ppo:swingup_adaptive` for the swing-up) for `steps` under
+    `randomization_for` the calibration, in simulation, and evaluate both policies for `episodes`
+    episodes on the board.
 
     Writes `out/calibration.yaml` (and its recording), the run `out/fine_tune`, and `out/adapt.json`.
-    `train_kwargs` go to `train` (e.g. `num_envs`, `evaluations`).
+    `train_kwargs` go to `train` (e.g. `num_envs`, `evaluations`, `hyperparameters`).
     """
     from qube_suite import calibration, policies
     from qube_suite.evaluation import evaluate
     from qube_suite.training import train
 
-    init = init or f"ppo:{task}"
-    if init not in policies.shipped() and not pathlib.Path(init).exists():
+    if init is None:
+        init, train_kwargs["hyperparameters"] = fine_tuning(task, train_kwargs.get("hyperparameters"))
+    if init is None or (init not in policies.shipped() and not pathlib.Path(init).exists()):
         raise ValueError(f"init: no policy {init!r} (shipped: {', '.join(policies.shipped())}); give --init")
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)

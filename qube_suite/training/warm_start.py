@@ -12,7 +12,12 @@ current features' and, for the voltages, as a uniform draw within the limits.
 A run can also start from a policy file (`from_policy`), e.g. a shipped one: its
 actor and normalisation are copied, the value network starts afresh and learns
 alone, the actor frozen, for the first `VALUE_WARMUP_STEPS`, so that the first
-updates do not follow a value function that knows nothing. The same holds for a
+updates do not follow a value function that knows nothing. The normalisation
+stays the file's (`FixedStatistics`): it is the actor's input layer, and
+running statistics that drift toward the new run's states (exploring starts,
+another randomization) change what the actor does while it is frozen; so they
+did, `ppo:swingup_adaptive`'s evaluations falling from 1751 to 915 within the
+warm-up of a calibrated fine-tuning. The same holds for a
 run that starts from an imitation run (`imitation_run`, `training.imitation`). Imports
 stable-baselines3 and torch.
 
@@ -28,6 +33,7 @@ import pickle
 from typing import Any
 
 import numpy as np
+from stable_baselines3.common.running_mean_std import RunningMeanStd
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from qube_suite.policies.history import input_size
@@ -35,6 +41,17 @@ from qube_suite.policies.mlp import MLPPolicy
 
 VALUE_WARMUP_STEPS = 400_000
 """Steps a run started from a policy file trains its value network only (about 50 PPO updates)."""
+
+
+class FixedStatistics(RunningMeanStd):
+    """Observation statistics that training does not update (`update` keeps them as they are)."""
+
+    def __init__(self, mean: np.ndarray, var: np.ndarray):
+        super().__init__(shape=np.shape(mean))
+        self.mean, self.var = np.array(mean, dtype=np.float64), np.array(var, dtype=np.float64)
+
+    def update(self, arr: np.ndarray) -> None:
+        """Keeps the statistics: a policy file's normalisation is part of its policy."""
 
 
 def imitation_run(init: pathlib.Path) -> bool:
@@ -135,26 +152,28 @@ def load_model(algorithm, init: pathlib.Path, venv: VecEnv, seed: int, settings:
 def from_policy(algorithm, policy: MLPPolicy, venv: VecEnv, seed: int, settings: dict[str, Any],
                 policy_kwargs: dict[str, Any], history: int = 0):
     """A new PPO model on `venv` (with `history` past steps) and its normalisation, whose actor is
-    that of `policy` (a policy file without history, same or fewer features), widened with zero
-    weights for inputs the file did not see; the value network starts afresh (`policy_kwargs`).
+    that of `policy` (a policy file without history, same or fewer features, widened with zero
+    weights for inputs the file did not see; or one with this `history` and these inputs, as it is),
+    and its normalisation, fixed (`FixedStatistics`); the value network starts afresh (`policy_kwargs`).
     Returns (model, VecNormalize-wrapped venv)."""
     import torch
 
     if algorithm.__name__ != "PPO" or policy.meta["algo"] != "ppo" or policy.meta["squash"]:
         raise ValueError(f"init: only PPO runs start from a PPO policy file ({policy.name}: "
                          f"{policy.meta['algo']}, this run: {algorithm.__name__.lower()})")
-    if policy.history:
-        raise ValueError(f"init: {policy.name} has a history; start from a policy file without one")
     old_size, new_size = policy.observation_mean.shape[0], venv.observation_space.shape[0]
     features = _features(new_size, history)
-    if old_size > features:
+    if policy.history and (policy.history != history or old_size != new_size):
+        raise ValueError(f"init: {policy.name} has a history of {policy.history} steps over {old_size} "
+                         f"inputs; this run has {history} over {new_size}: give it the same history")
+    if old_size > features and not policy.history:
         raise ValueError(f"init: {policy.name} observes {old_size} features, more than this task's "
                          f"{features}")
     normalized = VecNormalize(venv, gamma=settings["gamma"], norm_reward=True,
                               clip_obs=float(policy.meta["clip"]), epsilon=float(policy.meta["epsilon"]))
-    normalized.obs_rms.mean, normalized.obs_rms.var = widen_statistics(
-        policy.observation_mean, policy.observation_var, features, history, policy.voltage_limit)
-    normalized.obs_rms.count = 1e6  # statistics of a finished run: they move slowly from here
+    normalized.obs_rms = FixedStatistics(policy.observation_mean, policy.observation_var) if policy.history \
+        else FixedStatistics(*widen_statistics(policy.observation_mean, policy.observation_var, features,
+                                               history, policy.voltage_limit))
     hidden = [weight.shape[0] for weight in policy.weights[:-1]]
     activations = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
     kwargs = {**policy_kwargs, "activation_fn": activations[policy.meta["activation"]],
