@@ -31,27 +31,38 @@ writes the table as JSON beside the runs and the plot to docs/sim2real.png.
 
 Every training run and every (run, condition) score is a Ray Tune trial
 (`qube_suite.grid`, the `grid` extra): on this machine's cores (`--jobs` at a
-time) by default, on a Ray cluster with `--address`.
+time) by default, on a Ray cluster with `--address`. Each score is kept in
+`RUNS/scores/<run>__seed<k>__<condition>.json` with what it scored (the job:
+policy path, episodes, seeds) and a hash of the policy file's content (and of a
+controller's calibration); a later invocation reuses it unless one of them
+changed (a retrained policy is scored again), so rows can be added one
+invocation at a time. The tables, `RUNS/sim2real.json` and the plots cover
+every score present: the kept ones whose policy is unchanged, and the rows of
+an earlier `sim2real.json` without such records (`--import-scores` files them
+under this invocation's jobs, to be reused).
 
     python benchmarks/sim2real.py [--base DIR] [--steps 2000000] [--episodes 20] [--seeds 1]
                                   [--held-out 10] [--runs runs/sim2real] [--jobs 2] [--train-jobs 1]
                                   [--address ray://head:10001] [--main-only] [--rows ROW ...]
                                   [--calibrated 3] [--calibrated-steps 1000000]
                                   [--policies ppo:swingup ...] [--held-out-only]
+                                  [--summary-only] [--import-scores OLD/sim2real.json]
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import pathlib
+import re
 import shutil
 
 import held_out
 import numpy as np
 
-from qube_suite import baselines, evaluate
+from qube_suite import baselines, evaluate, policies
 from qube_suite.grid import run_grid
 from qube_suite.hardware.plant import plant_parameters
 from qube_suite.policies import load_policy
@@ -265,6 +276,99 @@ def score(job: dict) -> dict:
             "success_ci": [success_low, success_high], "returns": returns}
 
 
+SCORES = "scores"
+"""Directory of the kept scores, under the runs directory."""
+
+
+def fingerprint(job: dict) -> str:
+    """SHA-256 of what a score job evaluates: its policy file's content (a shipped name's file; a
+    controller's name) and its calibration file's, if any; a missing file hashes as its name."""
+    digest = hashlib.sha256()
+    for spec in (job["path"], job.get("parameters")):
+        if spec is None:
+            continue
+        file = policies.shipped().get(spec, pathlib.Path(spec))
+        digest.update(file.read_bytes() if file.is_file() else f"missing {spec}".encode())
+    return digest.hexdigest()
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9.+-]+", "_", text).strip("_")
+
+
+def score_file(runs: pathlib.Path, job: dict) -> pathlib.Path:
+    """Where the score of `job` is kept: `runs/scores/<run>__seed<k>__<condition>.json`."""
+    return runs / SCORES / f"{_slug(job['run'])}__seed{job['training_seed']}__{_slug(job['condition'])}.json"
+
+
+def keep_score(runs: pathlib.Path, job: dict, row: dict) -> None:
+    """Keep the score `row` of `job`, with the job and its `fingerprint`."""
+    path = score_file(runs, job)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({"job": job, "fingerprint": fingerprint(job), "row": row}, indent=1))
+
+
+def kept_score(runs: pathlib.Path, job: dict) -> dict | None:
+    """The kept score of exactly `job` if its policy (and calibration) are unchanged, else None."""
+    path = score_file(runs, job)
+    if not path.is_file():
+        return None
+    kept = json.loads(path.read_text())
+    return kept["row"] if kept["job"] == job and kept["fingerprint"] == fingerprint(job) else None
+
+
+def kept_scores(runs: pathlib.Path) -> list[dict]:
+    """Every kept score in `runs` whose policy (and calibration) are unchanged, in row order."""
+    rows, stale = [], []
+    for path in sorted((runs / SCORES).glob("*.json")):
+        kept = json.loads(path.read_text())
+        row = {**kept["row"], "fingerprint": kept["fingerprint"]}
+        (rows if kept["fingerprint"] == fingerprint(kept["job"]) else stale).append(row)
+    if stale:
+        print(f"{len(stale)} kept scores left out: their policy changed or is gone "
+              f"({', '.join(sorted({row['run'] for row in stale}))})")
+    return sorted(rows, key=row_order)
+
+
+def row_order(row: dict) -> tuple:
+    """Sort key of score rows: the study's rows in `TRAINING`, `MODEL_BASED`, `CALIBRATED` order, then
+    others by name; then training seed; then condition (`CONDITIONS`, then held-out plants by number)."""
+    known = (*TRAINING, *MODEL_BASED, CALIBRATED)
+    run = (known.index(row["run"]), "") if row["run"] in known else (len(known), row["run"])
+    condition = row["condition"]
+    place = ((list(CONDITIONS).index(condition), 0) if condition in CONDITIONS
+             else (len(CONDITIONS), int(condition.split()[-1])) if condition.startswith("held-out")
+             else (len(CONDITIONS) + 1, 0))
+    return (*run, row["training_seed"], *place)
+
+
+def legacy_rows(path: pathlib.Path) -> list[dict]:
+    """The score rows of a `sim2real.json` that have no kept score (written before scores were
+    kept, or imported there): those without a `fingerprint`."""
+    if not path.is_file():
+        return []
+    rows = json.loads(path.read_text())["rows"]
+    return [row for row in rows if "returns" in row and "fingerprint" not in row]
+
+
+def import_scores(runs: pathlib.Path, path: pathlib.Path, jobs: list[dict]) -> None:
+    """Keep the rows of an earlier `sim2real.json` at `path` as the scores of this invocation's `jobs`
+    of the same (run, training seed, condition), for the policies as they are now; rows of no job, or
+    of another episode count, are left out (and named)."""
+    by_key = {(job["run"], job["training_seed"], job["condition"]): job for job in jobs}
+    imported, left = 0, []
+    for row in legacy_rows(path):
+        job = by_key.get((row["run"], row["training_seed"], row["condition"]))
+        if job is None or len(row["returns"]) != job["episodes"]:
+            left.append(f"{row['run']} / {row['condition']}")
+            continue
+        keep_score(runs, job, row)
+        imported += 1
+    print(f"imported {imported} scores from {path} into {runs / SCORES}")
+    if left:
+        print(f"left out {len(left)} (no such job here, or other episodes): {', '.join(left)}")
+
+
 def plot(rows: list[dict], path: pathlib.Path) -> None:
     import matplotlib
 
@@ -367,6 +471,35 @@ def summarize(rows: list[dict], costs: dict[str, dict]) -> list[dict]:
     return summary
 
 
+def score_jobs(args: argparse.Namespace, runs: pathlib.Path, rows_wanted: tuple[str, ...],
+               names: tuple[str, ...], conditions: tuple[str, ...], held: dict) -> list[dict]:
+    """The score jobs of the rows wanted, for the runs, calibrations and policies present."""
+    common = {"episodes": args.episodes, "seed": args.seed, "held_out": args.held_out}
+    jobs = []
+    for name in names:
+        for training_seed in range(args.seeds):
+            path = run_directory(runs, name, training_seed) / POLICY
+            if path.exists():
+                for condition in conditions if name in MAIN else ("hardware",):
+                    jobs.append({"run": name, "training_seed": training_seed, "path": str(path),
+                                 "condition": condition, **common})
+    for spec in args.policies:
+        jobs += [{"run": spec, "training_seed": 0, "path": spec, "condition": c, **common}
+                 for c in conditions]
+    if MODEL_BASED[0] in rows_wanted:
+        jobs += [{"run": MODEL_BASED[0], "training_seed": 0, "path": "swingup", "condition": c, **common}
+                 for c in conditions]
+    for condition in held:
+        directory = calibrated_directory(runs, condition)
+        if MODEL_BASED[1] in rows_wanted and (directory / "calibration.yaml").exists():
+            jobs.append({"run": MODEL_BASED[1], "training_seed": 0, "path": "swingup", "condition": condition,
+                         "parameters": str(directory / "calibration.yaml"), **common})
+        if CALIBRATED in rows_wanted and (directory / POLICY).exists():
+            jobs.append({"run": CALIBRATED, "training_seed": 0, "path": str(directory / POLICY),
+                         "condition": condition, **common})
+    return jobs
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--base", type=pathlib.Path, help="a finished swing-up training run to start from "
@@ -400,7 +533,11 @@ def main() -> None:
     parser.add_argument("--name", nargs="*", default=[], metavar="POLICY=ROW",
                         help="row names for the policies of --held-out-json")
     parser.add_argument("--summary-only", action="store_true",
-                        help="no training or scoring: summarize the scores in RUNS/sim2real.json")
+                        help="no training or scoring: summarize the scores present (RUNS/scores, and rows "
+                             "of RUNS/sim2real.json without a kept score)")
+    parser.add_argument("--import-scores", type=pathlib.Path, default=None, metavar="SIM2REAL.json",
+                        help="keep the scores of an earlier sim2real.json as those of this invocation's "
+                             "jobs (same run, seed, condition and episodes), to be reused")
     parser.add_argument("--held-out-only", action="store_true",
                         help="score on the substitute and the held-out plants only (not on the simulation "
                              "and the named variations)")
@@ -423,39 +560,26 @@ def main() -> None:
             calibrate_missing(runs, args.held_out, fine_tuned, args.calibrated_steps, training_grid)
     held = held_out_conditions(args.held_out)
     conditions = ("hardware", *held) if args.held_out_only else (*CONDITIONS, *held)
-    common = {"episodes": args.episodes, "seed": args.seed, "held_out": args.held_out}
-    jobs = []
-    for name in names:
-        for training_seed in range(args.seeds):
-            path = run_directory(runs, name, training_seed) / POLICY
-            if path.exists():
-                for condition in conditions if name in MAIN else ("hardware",):
-                    jobs.append({"run": name, "training_seed": training_seed, "path": str(path),
-                                 "condition": condition, **common})
-    for spec in args.policies:
-        jobs += [{"run": spec, "training_seed": 0, "path": spec, "condition": c, **common}
-                 for c in conditions]
-    if MODEL_BASED[0] in rows_wanted:
-        jobs += [{"run": MODEL_BASED[0], "training_seed": 0, "path": "swingup", "condition": c, **common}
-                 for c in conditions]
-    for condition in held:
-        directory = calibrated_directory(runs, condition)
-        if MODEL_BASED[1] in rows_wanted and (directory / "calibration.yaml").exists():
-            jobs.append({"run": MODEL_BASED[1], "training_seed": 0, "path": "swingup", "condition": condition,
-                         "parameters": str(directory / "calibration.yaml"), **common})
-        if CALIBRATED in rows_wanted and (directory / POLICY).exists():
-            jobs.append({"run": CALIBRATED, "training_seed": 0, "path": str(directory / POLICY),
-                         "condition": condition, **common})
-    if args.summary_only:
-        previous = json.loads((runs / "sim2real.json").read_text())
-        rows = [row for row in previous["rows"] if "returns" in row]
-    else:
-        rows = run_grid(score, jobs, name="sim2real_scores", **grid)
+    jobs = score_jobs(args, runs, rows_wanted, names, conditions, held)
+    if args.import_scores:
+        import_scores(runs, args.import_scores, jobs)
+    if not args.summary_only:
+        todo = [job for job in jobs if kept_score(runs, job) is None]
+        print(f"scores: {len(jobs) - len(todo)} of {len(jobs)} kept in {runs / SCORES}; "
+              f"computing {len(todo)}", flush=True)
+        for job, row in zip(todo, run_grid(score, todo, name="sim2real_scores", **grid), strict=True):
+            keep_score(runs, job, row)
+    rows = kept_scores(runs)
+    kept = {(row["run"], row["training_seed"], row["condition"]) for row in rows}
+    legacy = [row for row in legacy_rows(runs / "sim2real.json")
+              if (row["run"], row["training_seed"], row["condition"]) not in kept]
+    rows = sorted(rows + legacy, key=row_order)
     names = dict(pair.split("=", 1) for pair in args.name)
     imported = [row for path in args.held_out_json for row in held_out_rows(path, names)]
     costs = {}
+    seeds = max([args.seeds, *(row["training_seed"] + 1 for row in rows)])
     for name in ("base", *TRAINING):
-        for training_seed in range(args.seeds):
+        for training_seed in range(seeds):
             record = run_directory(runs, name, training_seed) / "training.json"
             if record.exists():
                 data = json.loads(record.read_text())
@@ -466,8 +590,8 @@ def main() -> None:
         if record.exists():
             data = json.loads(record.read_text())
             costs[f"{CALIBRATED}, {condition}"] = {"steps": data["steps"], "wall_time_s": data["wall_time_s"]}
-    if args.summary_only:
-        print(f"{len(rows)} scores from {runs / 'sim2real.json'}")
+    print(f"{len(rows) - len(legacy)} kept scores in {runs / SCORES}"
+          + (f" and {len(legacy)} from {runs / 'sim2real.json'}" if legacy else ""))
     print("| trained with | seed | evaluated on | return (95 % CI) | success (95 % CI) |")
     print("|---|---|---|---|---|")
     for row in rows:
