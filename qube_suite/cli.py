@@ -661,7 +661,8 @@ def _adapt(args: argparse.Namespace) -> int:
                               progress=not args.quiet)
     print(report.table())
     print(f"calibration {report.calibration}; fine-tuned policy {report.policy} "
-          f"({report.training_wall_time_s:.0f} s of training); all in {args.out}/adapt.json")
+          f"({report.training_wall_time_s:.0f} s of training); use {report.kept}; "
+          f"all in {args.out}/adapt.json")
     return 0
 
 
@@ -684,8 +685,8 @@ def _add_adapt(commands) -> None:
                        help="policy to fine-tune (default: ppo:TASK_adaptive if shipped, else ppo:TASK)")
     adapt.add_argument("--seconds", type=_positive_float, default=60.0,
                        help="calibration experiment, at most 60 s (default: 60)")
-    adapt.add_argument("--steps", type=_positive_int, default=2_000_000,
-                       help="fine-tuning steps in simulation (default: 2000000)")
+    adapt.add_argument("--steps", type=_positive_int, default=1_000_000,
+                       help="fine-tuning steps in simulation (default: 1000000)")
     adapt.add_argument("--episodes", type=_positive_int, default=10,
                        help="evaluation episodes on the board, per policy (default: 10)")
     adapt.add_argument("--seed", type=int, default=0, help="seed (default: 0)")

@@ -84,6 +84,8 @@ def test_adapt_calibrates_fine_tunes_and_evaluates_on_the_substitute(tmp_path, c
     assert saved["after"]["policy"] == str(report.policy) and load_policy(report.policy).history == 8
     assert saved["before"]["episodes"] == 1 and 0.0 <= saved["after"]["success_rate"] <= 1.0
     assert "| before: ppo:swingup_adaptive |" in report.table()
+    assert saved["kept"] == report.kept
+    assert report.kept in (saved["before"]["policy"], saved["after"]["policy"])
 
 
 def test_the_adapt_command_passes_the_board_and_the_short_mode_on(monkeypatch, tmp_path, capsys):
@@ -99,7 +101,22 @@ def test_the_adapt_command_passes_the_board_and_the_short_mode_on(monkeypatch, t
     (args, kwargs), = calls
     assert args == ("swingup", "qube_hardware", {"board": "simulated"})
     assert (kwargs["seconds"], kwargs["steps"], kwargs["episodes"]) == (20.0, 1000, 2)
-    assert "| after: p.npz | 1800 | 100 % of 2 |" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "| after: p.npz | 1800 | 100 % of 2 |" in out and "kept: p.npz" in out and "use p.npz" in out
+
+
+def test_adapt_keeps_the_fine_tuned_policy_only_if_it_did_better_on_the_board(tmp_path):
+    def report(before, after):
+        return calibrated.AdaptReport(tmp_path / "c.yaml", tmp_path / "p.npz",
+                                      {"policy": "ppo:swingup_adaptive", "mean_return": before[1],
+                                       "success_rate": before[0], "episodes": 20},
+                                      {"policy": "p.npz", "mean_return": after[1], "success_rate": after[0],
+                                       "episodes": 20}, 100.0)
+
+    assert report((1.0, 1846.0), (0.45, 1710.0)).kept == "ppo:swingup_adaptive"  # fine-tuning lost
+    assert report((1.0, 1846.0), (1.0, 1835.0)).kept == "ppo:swingup_adaptive"  # as often, lower return
+    assert report((0.75, 1400.0), (1.0, 1200.0)).kept == "p.npz"  # more often, whatever the return
+    assert report((1.0, 1800.0), (1.0, 1835.0)).kept == "p.npz"
 
 
 def test_calibrated_runs_start_from_the_adaptive_policy_with_its_fine_tuning_settings():
