@@ -107,3 +107,17 @@ def test_a_tiny_imitation_fits_the_teacher_and_ppo_starts_from_it_with_the_actor
 
     log_std = PPO.load(result.directory / "model.zip", device="cpu").policy.log_std.detach().numpy()
     np.testing.assert_array_equal(log_std, np.full_like(log_std, -4.0))  # the imitation's was -1
+
+
+@pytest.mark.slow
+@needs_rl
+def test_a_follow_task_is_imitated_on_its_target_schedule(tmp_path):
+    small = {"num_envs": 2, "n_steps": 64, "batch_size": 128,
+             "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}, "activation_fn": "tanh",
+                               "log_std_init": -1.0, "ortho_init": False}}
+    sine = {"target": "sine", "target_frequency": 0.5}
+    run = imitation.imitate("swingup_follow", teacher="follow", steps=1024, iterations=1, history=0,
+                            out=tmp_path, hyperparameters=small, task_kwargs=sine, progress=False)
+    assert json.loads((run / "training.json").read_text())["task_kwargs"] == sine
+    policy = load_policy(run / "policy.npz")
+    assert policy.tasks == ("swingup_follow",) and policy.weights[0].shape == (16, 8)  # sees the target
