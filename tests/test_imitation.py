@@ -48,6 +48,16 @@ def test_teachers_label_each_world_and_restart_the_ones_asked():
     assert teachers.labels(np.array([trig(NEXT)] * 2))[1] == pytest.approx(fresh)  # world 1 starts afresh
 
 
+def test_teachers_of_a_follow_task_read_its_target_from_the_features():
+    teachers = imitation.Teachers("follow", 1, 3.0, target=True)
+    balanced = np.zeros(4)
+    features = np.append(trig(balanced), [-0.4, 0.4])  # [the six, theta - theta_target, theta_target]
+    teacher = baselines.make("follow", voltage_limit=3.0, latency_steps=imitation.TEACHER_LATENCY_STEPS)
+    expected = teacher(np.append(balanced, 0.4))  # its own layout: the state, then the target
+    assert teachers.labels(features[None, :])[0] == pytest.approx(expected)
+    assert abs(expected) > 1.0  # balanced with the arm at 0 and the target at 0 it sends 0 V
+
+
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"teacher": "juggler"}, "unknown teacher 'juggler'"),
     ({"teacher": "rotor"}, "not made for task 'swingup'"),
@@ -58,6 +68,13 @@ def test_teachers_label_each_world_and_restart_the_ones_asked():
 def test_bad_settings_are_refused_before_any_environment(kwargs, message):
     with pytest.raises(ValueError, match=message):
         imitation.imitate("swingup", **kwargs)
+
+
+@pytest.mark.parametrize(("task_kwargs", "message"), [
+    ({"target": "zigzag"}, "unknown target schedule 'zigzag'"), ({"random": 1}, "drop 'random'")])
+def test_bad_task_settings_are_refused_before_any_environment(task_kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        imitation.imitate("swingup_follow", teacher="follow", task_kwargs=task_kwargs)
 
 
 @pytest.mark.slow
@@ -90,3 +107,17 @@ def test_a_tiny_imitation_fits_the_teacher_and_ppo_starts_from_it_with_the_actor
 
     log_std = PPO.load(result.directory / "model.zip", device="cpu").policy.log_std.detach().numpy()
     np.testing.assert_array_equal(log_std, np.full_like(log_std, -4.0))  # the imitation's was -1
+
+
+@pytest.mark.slow
+@needs_rl
+def test_a_follow_task_is_imitated_on_its_target_schedule(tmp_path):
+    small = {"num_envs": 2, "n_steps": 64, "batch_size": 128,
+             "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}, "activation_fn": "tanh",
+                               "log_std_init": -1.0, "ortho_init": False}}
+    sine = {"target": "sine", "target_frequency": 0.5}
+    run = imitation.imitate("swingup_follow", teacher="follow", steps=1024, iterations=1, history=0,
+                            out=tmp_path, hyperparameters=small, task_kwargs=sine, progress=False)
+    assert json.loads((run / "training.json").read_text())["task_kwargs"] == sine
+    policy = load_policy(run / "policy.npz")
+    assert policy.tasks == ("swingup_follow",) and policy.weights[0].shape == (16, 8)  # sees the target

@@ -10,7 +10,7 @@ import pytest
 
 from qube_suite import cli, training
 from qube_suite.policies import load_policy, shipped
-from qube_suite.training import recipes
+from qube_suite.training import imitation, recipes
 from qube_suite.training.recipes import RECIPES, Recipe, Stage
 
 HAVE_RL = all(importlib.util.find_spec(name) for name in training.RL_EXTRA)
@@ -32,6 +32,7 @@ def test_every_shipped_policy_has_a_recipe_that_matches_its_training_record():
         assert record["seed"] == last.seed, spec
         assert record["steps"] <= last.steps + 8192, spec  # PPO rounds up to whole rollouts
         assert (record.get("init") is None) == (last.init is None), spec
+        assert record.get("task_kwargs", {}) == last.task_kwargs, spec  # e.g. the target schedule
         if last.keep == "policy.npz":  # the final policy has the whole budget
             assert record["steps"] >= last.steps, spec
 
@@ -44,6 +45,8 @@ def test_every_shipped_policy_has_a_recipe_that_matches_its_training_record():
     ({"randomization": "milder"}, "unknown randomization preset 'milder'"),
     ({"teacher": "juggler"}, "unknown teacher 'juggler'"),
     ({"teacher": "swingup", "keep": "best_policy.npz"}, "an imitation stage starts afresh"),
+    ({"task": "swingup_follow", "task_kwargs": {"target": "zigzag"}}, "unknown target schedule 'zigzag'"),
+    ({"task": "swingup_follow", "task_kwargs": {"random": 3}}, "drop 'random'"),
 ])
 def test_a_bad_recipe_is_refused_naming_the_stage(change, message):
     stage = dataclasses.replace(Stage("only", "balance", 100, 1), **change)
@@ -76,6 +79,24 @@ def test_train_with_a_task_alone_runs_its_recipe_and_with_options_one_run(monkey
                      ("train", "swingup_sparse", 2_000_000)]
     assert cli.main(["train", "--recipe", "rotor", "--steps", "5"]) == 2
     assert cli.main(["train"]) == 2
+
+
+def test_a_stage_trains_and_imitates_with_its_task_settings(monkeypatch, tmp_path, capsys):
+    steps = {"target": "steps", "target_hold_time": 3.0}
+    recipe = Recipe("slow", (Stage("teach", "swingup_follow", 100, 1, teacher="follow", task_kwargs=steps),
+                             Stage("learn", "swingup_follow", 100, 1, init="teach",
+                                   task_kwargs={"target": "sine"})), "tracks")
+    calls = {}
+    monkeypatch.setattr(imitation, "imitate", lambda task, teacher, steps, **kwargs: calls.setdefault(
+        "imitate", kwargs["task_kwargs"]))
+    monkeypatch.setattr(training, "train", lambda task, **kwargs: calls.setdefault(
+        "train", kwargs["task_kwargs"]))
+    recipes.run(recipe, out=tmp_path, progress=False)
+    assert calls == {"imitate": steps, "train": {"target": "sine"}}
+    monkeypatch.setitem(RECIPES, "slow", recipe)
+    row = next(line for line in recipes.listing().splitlines() if line.startswith("| slow |"))
+    assert "swingup_follow 0.0001 M imitating follow (target=steps, target_hold_time=3.0) → " \
+           "swingup_follow 0.0001 M (target=sine)" in row
 
 
 @pytest.mark.slow

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from qube_suite import baselines
+from qube_suite import baselines, suite
 from qube_suite import randomization as randomization_configs
 from qube_suite.conventions import ObservationLayout
 from qube_suite.training.hyperparameters import HYPERPARAMETERS
@@ -62,14 +62,16 @@ delays the voltage by 0 or 1 step)."""
 def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_000, iterations: int = 10,
             seed: int = 0, randomization: Any = "wide", out: str | pathlib.Path | None = None,
             history: int = 8, exploring_starts: float = EXPLORING_STARTS,
-            hyperparameters: dict[str, Any] | None = None, progress: bool = True) -> pathlib.Path:
+            hyperparameters: dict[str, Any] | None = None, task_kwargs: dict[str, Any] | None = None,
+            progress: bool = True) -> pathlib.Path:
     """Fit a PPO actor with `history` past steps to controller `teacher` on `task` by DAgger, over
     `steps` environment steps in `iterations` iterations, in simulation under `randomization`, a
     fraction `exploring_starts` of the episodes starting anywhere; write a training run's files to
     `out` (default `runs/imitation_<task>_<seed>`) and return its directory.
 
     `hyperparameters`: overrides of `HYPERPARAMETERS["ppo"]`, for the model the actor lives in (its
-    `policy_kwargs` set the network's size) and for a PPO run that starts from it.
+    `policy_kwargs` set the network's size) and for a PPO run that starts from it. `task_kwargs`:
+    the task's settings, e.g. a follow task's target schedule (`{"target": "steps"}`), as `train`'s.
     """
     if teacher not in baselines.CONTROLLERS:
         raise ValueError(f"unknown teacher {teacher!r}; controllers: {', '.join(baselines.CONTROLLERS)}")
@@ -83,26 +85,34 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
         raise ValueError(f"exploring_starts must be a fraction in [0, 1], got {exploring_starts!r}")
     if randomization is not None:
         randomization_configs.load(randomization)
+    task_kwargs = dict(task_kwargs or {})
+    if "random" in task_kwargs:
+        raise ValueError("task_kwargs: imitation seeds the environments itself (seed=); drop 'random'")
+    suite.make_task("qube", task, task_kwargs)  # bad task settings fail here, before any environment
     from qube_suite.training import require_rl
 
     require_rl()
     settings = {**HYPERPARAMETERS["ppo"], **(hyperparameters or {}), "history": history}
     out = pathlib.Path(out or f"runs/imitation_{task}_{seed}")
     return _imitate(task, teacher, steps, iterations, seed, randomization, out, exploring_starts, settings,
-                    progress)
+                    task_kwargs, progress)
 
 
 class Teachers:
     """One controller per world: labels each world's current features, hears what was really sent."""
 
-    def __init__(self, name: str, worlds: int, voltage_limit: float):
+    def __init__(self, name: str, worlds: int, voltage_limit: float, target: bool = False):
         self._controllers = [baselines.make(name, voltage_limit=voltage_limit,
                                             latency_steps=TEACHER_LATENCY_STEPS) for _ in range(worlds)]
+        self._target = target
         for controller in self._controllers:  # they read the learner's trig features
-            controller.observation_layout = ObservationLayout("trig", controller.follows_target)
+            controller.observation_layout = ObservationLayout("trig", target)
 
     def labels(self, features: np.ndarray) -> np.ndarray:
-        """The teachers' voltages (V) for each world's `trig` features (rows)."""
+        """The teachers' voltages (V) for each world's `trig` features (rows; in a follow task the
+        trig observation's six, theta - theta_target, theta_target)."""
+        if self._target:  # the trig observation: the six, then theta_target
+            features = np.column_stack([features[:, :6], features[:, 7]])
         pairs = zip(self._controllers, features, strict=True)
         return np.array([controller(row) for controller, row in pairs])
 
@@ -118,7 +128,7 @@ class Teachers:
 
 
 def _imitate(task, teacher, steps, iterations, seed, randomization, out, exploring_starts, settings,
-             progress) -> pathlib.Path:
+             task_kwargs, progress) -> pathlib.Path:
     import stable_baselines3
     import torch
     from stable_baselines3.common.running_mean_std import RunningMeanStd
@@ -139,7 +149,7 @@ def _imitate(task, teacher, steps, iterations, seed, randomization, out, explori
     policy_kwargs["activation_fn"] = activations[policy_kwargs["activation_fn"]]
     settings["batch_size"] = min(settings["batch_size"], settings["n_steps"] * num_envs)
     venv = make_vec_env(task, num_envs, seed, exploring_starts=exploring_starts, history=history,
-                        randomization=randomization)
+                        randomization=randomization, task_kwargs=task_kwargs)
     normalized = VecNormalize(venv, gamma=settings["gamma"], norm_reward=True)
     model = stable_baselines3.PPO("MlpPolicy", normalized, seed=seed, device="cpu",
                                   policy_kwargs=policy_kwargs, **settings)
@@ -147,7 +157,7 @@ def _imitate(task, teacher, steps, iterations, seed, randomization, out, explori
     actor = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters()]
     optimizer = torch.optim.Adam(actor, lr=LEARNING_RATE)
     voltage_limit = float(venv.action_space.high[0])
-    teachers = Teachers(teacher, num_envs, voltage_limit)
+    teachers = Teachers(teacher, num_envs, voltage_limit, target=suite.make_task("qube", task).follows_target)
     statistics = RunningMeanStd(shape=venv.observation_space.shape)
     random = np.random.default_rng(seed)
     features = venv.venv.observation_space.shape[0] if history else venv.observation_space.shape[0]
@@ -207,7 +217,7 @@ def _imitate(task, teacher, steps, iterations, seed, randomization, out, explori
     record = {"algo": "ppo", "task": task, "domain": "qube", "randomization":
               randomization if isinstance(randomization, str) or randomization is None else "custom",
               "seed": seed, "num_envs": num_envs, "teacher": teacher, "iterations": iterations,
-              "exploring_starts": exploring_starts, "hyperparameters": given,
+              "exploring_starts": exploring_starts, "task_kwargs": task_kwargs, "hyperparameters": given,
               "steps": iterations * per_iteration * num_envs, "wall_time_s": wall_time,
               "final_loss_v2": rows[-1]["loss_v2"], "stable_baselines3": stable_baselines3.__version__}
     save(export.from_sb3(model, statistics.mean, statistics.var, epsilon=normalized.epsilon,

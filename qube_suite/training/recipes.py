@@ -41,7 +41,9 @@ class Stage:
     this stage yields (`KEEP`); `minutes`: expected wall time. A stage with a
     `teacher` (a controller name) imitates it instead (`imitation.imitate`, DAgger,
     over `steps` steps, its history from `hyperparameters`; `exploring_starts`
-    None: `imitation.EXPLORING_STARTS`).
+    None: `imitation.EXPLORING_STARTS`). `task_kwargs`: the task's settings for
+    training and evaluation, e.g. a follow task's target schedule
+    (`{"target": "steps"}`, keywords of `qube_suite.tasks.follow`).
     """
 
     name: str
@@ -55,6 +57,7 @@ class Stage:
     hyperparameters: dict[str, Any] = dataclasses.field(default_factory=dict)
     keep: str = "policy.npz"
     teacher: str | None = None
+    task_kwargs: dict[str, Any] = dataclasses.field(default_factory=dict)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -118,8 +121,8 @@ RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
 
 
 def check(recipe: Recipe) -> None:
-    """ValueError unless `recipe` can run: known tasks, inits naming earlier stages, loadable
-    randomizations, positive steps, known kept files, unique stage names."""
+    """ValueError unless `recipe` can run: known tasks and task settings, inits naming earlier stages,
+    loadable randomizations, positive steps, known kept files, unique stage names."""
     seen: set[str] = set()
     for stage in recipe.stages:
         where = f"recipe {recipe.name!r}, stage {stage.name!r}"
@@ -136,6 +139,12 @@ def check(recipe: Recipe) -> None:
             raise ValueError(f"{where}: keep must be one of {', '.join(KEEP)}, got {stage.keep!r}")
         if stage.randomization is not None:
             randomization_configs.load(stage.randomization)
+        if "random" in stage.task_kwargs:
+            raise ValueError(f"{where}: task_kwargs: the stage's seed seeds the environments; drop 'random'")
+        try:
+            suite.make_task("qube", stage.task, dict(stage.task_kwargs))
+        except ValueError as error:
+            raise ValueError(f"{where}: task_kwargs: {error}") from None
         if stage.teacher is not None and stage.teacher not in baselines.CONTROLLERS:
             raise ValueError(f"{where}: unknown teacher {stage.teacher!r}; controllers: "
                              f"{', '.join(baselines.CONTROLLERS)}")
@@ -181,13 +190,20 @@ def run(recipe: str | Recipe, out: str | pathlib.Path | None = None, progress: b
                               history=hyperparameters.pop("history", 0), hyperparameters=hyperparameters,
                               **({} if stage.exploring_starts is None
                                  else {"exploring_starts": stage.exploring_starts}),
-                              progress=progress)
+                              task_kwargs=dict(stage.task_kwargs), progress=progress)
             continue
         train(stage.task, steps=stage.steps, seed=stage.seed, randomization=stage.randomization,
               out=directory, init=None if stage.init is None else root / stage.init,
               exploring_starts=stage.exploring_starts, hyperparameters=dict(stage.hyperparameters),
-              progress=progress, resume=True, **train_kwargs)
+              task_kwargs=dict(stage.task_kwargs), progress=progress, resume=True, **train_kwargs)
     return root / recipe.stages[-1].name / recipe.stages[-1].keep
+
+
+def _settings(stage: Stage) -> str:
+    """A stage's randomization and task settings, in brackets ("" without either)."""
+    given = ([stage.randomization] if stage.randomization else []) + [
+        f"{key}={value}" for key, value in stage.task_kwargs.items()]
+    return f" ({', '.join(given)})" if given else ""
 
 
 def listing() -> str:
@@ -195,7 +211,7 @@ def listing() -> str:
     lines = ["| recipe | stages | steps | expected wall time | target |", "|---|---|---|---|---|"]
     for recipe in RECIPES.values():
         stages = " → ".join(f"{s.task} {s.steps / 1e6:g} M" + (f" imitating {s.teacher}" if s.teacher else "")
-                            + (f" ({s.randomization})" if s.randomization else "") for s in recipe.stages)
+                            + _settings(s) for s in recipe.stages)
         lines.append(f"| {recipe.name} | {stages} | {recipe.steps / 1e6:g} M | {recipe.minutes:g} min | "
                      f"{recipe.target} |")
     return "\n".join(lines)
