@@ -2,7 +2,8 @@
 
 Rows: each controller on the tasks it is compared on (`ROWS`): `balance` (LQR),
 `swingup` (energy shaping + LQR), `mpc` (MPPI), `ilqr` (iLQR MPC) and the shipped
-PPO policies (`ppo:swingup`, `ppo:balance`). Plants, for each row:
+PPO policies (`ppo:swingup`, `ppo:balance`, and on the swing-up `ppo:swingup_adaptive`, which
+acts on a history of observations). Plants, for each row:
 
 * `nominal simulation`: the `qube` domain (MuJoCo, the nominal model), seeds 0 .. episodes-1;
 * `substitute`: `qube_hardware` on its default plant (fast mode), the same seeds;
@@ -56,12 +57,12 @@ from qube_suite.conventions import GOAL_PENDULUM_TOLERANCE  # noqa: E402
 from qube_suite.evaluation import policy_for  # noqa: E402
 
 ROWS: dict[str, tuple[str, ...]] = {
-    "swingup": ("swingup", "mpc", "ilqr", "ppo:swingup"),
+    "swingup": ("swingup", "mpc", "ilqr", "ppo:swingup", "ppo:swingup_adaptive"),
     "balance": ("balance", "swingup", "mpc", "ilqr", "ppo:balance"),
 }
 """Task -> the controllers and policies compared on it."""
 LABELS = {"balance": "LQR", "swingup": "energy + LQR", "mpc": "MPPI", "ilqr": "iLQR-MPC",
-          "ppo:swingup": "PPO", "ppo:balance": "PPO"}
+          "ppo:swingup": "PPO", "ppo:balance": "PPO", "ppo:swingup_adaptive": "PPO with history"}
 PLANTS = ("nominal simulation", "substitute", "held-out, nominal", "held-out, calibrated")
 CURRENT_LAG = {"qube": 0, "qube_hardware": 1}
 """Samples between a voltage and the current reading that answers it, per domain: the substitute

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from qube_suite import baselines, cli
+from qube_suite import baselines, cli, suite
 from qube_suite.baselines.ilqr import Cost, IterativeLQR, reference_iteration
 from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.domains import qube
@@ -148,3 +148,41 @@ def test_model_override_reaches_the_plan():
     assert heavy.model == RigidBodyModel.from_parameters({"pendulum_mass": 0.036})
     state = np.array([0.1, 2.0, 0.0, 1.0])
     assert not np.allclose(heavy.kernel.step(state, 1.0, H)[0], IterativeLQR().kernel.step(state, 1.0, H)[0])
+
+
+def test_reference_leads_the_arm_to_a_far_target():
+    """A 112 degree jump of the target is not put into the reference at once: the first knot is 20
+    degrees from the arm, the ramp then moves at 3 rad/s and ends on the target; a near target is the
+    reference all along."""
+    controller = IterativeLQR()
+    theta, target = math.radians(57.3), math.radians(-53.8)
+    reference, speed = controller._reference(theta, target, 0.0)
+    assert reference[0] == pytest.approx(theta - math.radians(20.0))
+    assert np.all(np.abs(np.diff(reference)) <= 3.0 * H + 1e-12)
+    assert reference[-1] == pytest.approx(target)
+    assert speed[0] == -3.0 and speed[-1] == 0.0
+    near, near_speed = controller._reference(0.1, 0.3, 0.2)
+    np.testing.assert_allclose(near, 0.3 + 0.2 * np.arange(len(near)) * H)
+    assert np.all(near_speed == 0.2)
+
+
+@pytest.mark.slow
+def test_ilqr_keeps_the_arm_in_range_on_jumping_targets_on_the_substitute():
+    """On the default "jump" schedule (seeds 0 to 4 in turn) the arm stays well inside the task's
+    90 degrees; the fifth episode used to end at -92 degrees and 12.7 rad/s, too fast for the reset
+    to brake before the board's 120 degree safety stop."""
+    env = suite.load("qube_hardware", "swingup_follow", task_kwargs={"random": 0})
+    controller = baselines.for_environment("ilqr", env)
+    largest = 0.0
+    try:
+        for seed in range(5):
+            env.task.random.seed(seed)
+            controller.reset()
+            timestep = env.reset()
+            while not timestep.last():
+                timestep = env.step(controller(timestep.observation))
+                largest = max(largest, abs(env.physics.qube.board.true_state()[0]))
+            assert timestep.discount == 1.0, f"seed {seed} ended beyond the arm's range"
+    finally:
+        env.close()
+    assert largest < math.radians(85.0)

@@ -43,7 +43,7 @@ import numpy as np
 from qube_suite.angles import wrap_angle
 from qube_suite.baselines._ilqr import Kernel
 from qube_suite.baselines.base import Controller
-from qube_suite.baselines.follow import REFERENCE_LIMIT, TargetSpeed, arm_set_point
+from qube_suite.baselines.follow import REFERENCE_LIMIT, REFERENCE_STEP, TargetSpeed, arm_set_point
 from qube_suite.baselines.lqr import BalanceLQR
 from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.baselines.observer import UNMODELLED_TORQUE
@@ -51,6 +51,16 @@ from qube_suite.baselines.swingup import CATCH_VOLTAGE, RELEASE_VOLTAGE
 from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
 
 DIAGONAL = (np.arange(4), np.arange(4))
+
+REFERENCE_SPEED = 3.0
+"""Fastest the arm reference moves away from the arm over the horizon (rad/s), beyond `REFERENCE_STEP`.
+
+Without it a jump of the target put the whole jump into the reference at once: on a 112 degree
+jump of the default schedule on the substitute board, the plan leaned the pendulum out of the
+balanced set (which switches the lean limit off) and then swept the arm through -138 degrees at
+17 rad/s, which neither the arm-limit cost nor 3 V of braking could stop before the board's
+120 degree safety limit. Led by a reference the arm can follow with the pendulum up, the same
+episodes keep the arm within 81 degrees."""
 
 MAX_REGULARIZATION = 10.0
 """Largest mu (the kernel's too): beyond it a step would only be shorter."""
@@ -89,7 +99,9 @@ class IterativeLQR(Controller):
     does `iterations` iLQR iterations from the observer's estimate (predicted
     over the latency) and sends the plan's first voltage. The arm reference is the
     target within +-60 degrees, extrapolated over the horizon with the target's
-    speed (estimated as in `FollowController`).
+    speed (estimated as in `FollowController`), and led towards a far target as a
+    ramp: at most 20 degrees from the arm at the first knot, then 3 rad/s
+    (`REFERENCE_SPEED`).
 
     While the pendulum is balanced (its lean and speed inside the balance LQR's catch
     ellipsoid, the arm's state left out; it leaves outside the larger release
@@ -166,13 +178,24 @@ class IterativeLQR(Controller):
             state[1] = kernel.X[0, 1] + wrap_angle(state[1] - kernel.X[0, 1])
         else:
             self._first_plan(state, target)
-        reference = np.clip(target + speed * self._times, -REFERENCE_LIMIT, REFERENCE_LIMIT)
-        reference_speed = np.where(np.abs(reference) < REFERENCE_LIMIT, speed, 0.0)
+        reference, reference_speed = self._reference(state[0], target, speed)
         if self.balancing:
             self._start_from_cheaper(state, target, reference, reference_speed)
         for _ in range(self.iterations):
             kernel.iterate(state, reference, reference_speed)
         return float(kernel.U[0])
+
+    def _reference(self, theta: float, target: float, speed: float) -> tuple[np.ndarray, np.ndarray]:
+        """The arm reference r_n and its speed r'_n (rad, rad/s) at the plan's knots, for the arm at
+        `theta` and the target at `target` moving at `speed`: the target extrapolated with its speed
+        within +-`REFERENCE_LIMIT`, and within `REFERENCE_STEP` + `REFERENCE_SPEED` t_n of the arm."""
+        reference = np.clip(target + speed * self._times, -REFERENCE_LIMIT, REFERENCE_LIMIT)
+        reference_speed = np.where(np.abs(reference) < REFERENCE_LIMIT, speed, 0.0)
+        reach = REFERENCE_STEP + REFERENCE_SPEED * self._times
+        ramp = np.clip(reference, theta - reach, theta + reach)
+        ramp_speed = np.sign(ramp - theta) * REFERENCE_SPEED
+        reference_speed = np.where(ramp == reference, reference_speed, ramp_speed)
+        return ramp, reference_speed
 
     def _start_from_cheaper(self, state: np.ndarray, target: float, reference: np.ndarray,
                             reference_speed: np.ndarray) -> None:

@@ -103,9 +103,11 @@ reset controllers leave it within about 1 degree on the substitute; the cable's 
 friction hold it there)."""
 
 PENDULUM_REST_TOLERANCE = 1
-"""Encoder counts: with the encoder check on, the pendulum hanging at rest must read pi to within one
+"""Encoder counts: with the encoder check on, the pendulum hanging at rest must be at pi to within one
 count (the bench's sway lets its Coulomb friction stop it within a count of hanging, where a count may
-flicker). More means its zero is lost."""
+flicker). More means its zero is lost. A reading of k counts puts the pendulum in [k, k + 1) counts (the
+encoder counts whole steps), so the readings -2 to 1 pass: a pendulum resting 1.2 counts below hanging
+reads -2."""
 
 REST_CHECK_TIME = 0.2
 """The encoder check reads the pendulum, the dampen controller still driving, until its counts have
@@ -544,7 +546,8 @@ class Physics(MeasuredState, control.Physics):
         else:
             raise ResetError(f"reset failed: the pendulum did not come to rest for the encoder check within "
                              f"{self._reset_timeout:g} s (counts from hanging: {offsets[-5:]})")
-        if abs(median) > PENDULUM_REST_TOLERANCE + 1e-6:
+        # an encoder reading of k counts puts the pendulum in [k, k + 1) counts: judge the count's centre
+        if abs(median + 0.5) > PENDULUM_REST_TOLERANCE + 0.5 + 1e-6:
             raise EncoderCheckError(
                 f"the pendulum hangs at rest but its encoder reads {abs(median):.0f} counts from hanging (at "
                 f"most {PENDULUM_REST_TOLERANCE} allowed): its zero is lost. Close the environment, let the "
