@@ -73,7 +73,8 @@ class Cost:
     pendulum: float = 40.0
     """q_alpha on 1 - cos alpha (about q_alpha / 2 alpha^2 near upright)."""
     arm: float = 20.0
-    """q_theta on (theta - r)^2: stiff enough to follow 2 s steps to 0.1 rad (0.1 rad at 5)."""
+    """q_theta on (theta - r)^2: steps held 3 s within +-60 degrees followed to 0.06 rad, 2 s to 0.11;
+    stiffer (30 to 100) follows them no closer (docs/optimal_control.md)."""
     arm_speed: float = 0.05
     """q_dtheta on (dtheta - r')^2."""
     pendulum_speed: float = 0.2
