@@ -138,7 +138,7 @@ def test_importing_qube_suite_and_running_a_policy_does_not_import_torch():
     assert result.stdout.strip() == "[]"
 
 
-VARIANTS = {"ppo:swingup_adaptive": "swingup"}
+VARIANTS = {"ppo:swingup_adaptive": "swingup", "ppo:swingup_follow_sine": "swingup_follow"}
 """Shipped policies named after their task and a variant: spec -> task."""
 
 
@@ -158,6 +158,25 @@ def test_the_policies_are_shipped_and_listed():
 def test_shipped_policies_reach_their_targets_on_unseen_seeds(spec, task, least):
     result = evaluate(spec, task=task, episodes=2, seed=1000)
     assert min(result.returns) >= least and result.success_rate == 1.0, result.returns
+
+
+SINE = {"target": "sine"}
+"""The slow sine schedule (0.2 Hz, +-45 degrees) `ppo:swingup_follow_sine` was trained on."""
+
+
+def test_the_sine_follower_tracks_the_sine_where_the_jump_trained_policy_does_not():
+    kwargs = {"task": "swingup_follow", "episodes": 2, "seed": 1000, "task_kwargs": SINE}
+    result = evaluate("ppo:swingup_follow_sine", **kwargs)
+    assert result.success_rate == 1.0 and result.follow_error < 0.1, (result.returns, result.follow_error)
+    assert evaluate("ppo:swingup_follow", **kwargs).follow_error > 0.5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("task", ["swingup_follow", "balance_follow"])
+def test_the_sine_follower_tracks_the_sine_on_the_hardware_substitute(task):
+    result = evaluate("ppo:swingup_follow_sine", domain="qube_hardware", task=task, episodes=2, seed=1000,
+                      task_kwargs=SINE)
+    assert result.success_rate == 1.0 and result.follow_error < 0.1, (result.returns, result.follow_error)
 
 
 @pytest.mark.slow
