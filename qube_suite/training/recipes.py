@@ -86,6 +86,14 @@ def _swingup_chain() -> tuple[Stage, ...]:
                   seed=1))
 
 
+IMITATION_ACTOR = {"net_arch": {"pi": [128, 128], "vf": [64, 64]}, "activation_fn": "tanh",
+                   "log_std_init": -1.0, "ortho_init": False}
+"""`policy_kwargs` of an imitation stage: a wider actor than PPO's default (64 x 64)."""
+SMALL_PPO_STEPS = {"init_log_std": -4.0, "learning_rate": 3e-5, "clip_range": 0.1}
+"""PPO after imitation: small exploration noise (gSDE log-std -4, the imitation's -1) and small
+steps; with -1 or -2, or a learning rate of 1e-4, it undoes the imitated feedback."""
+
+
 RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
     Recipe("balance", (Stage("balance", "balance", 500_000, 1.8),),
            "ppo:balance: 2044 in simulation, 100 % success on both domains"),
@@ -107,26 +115,18 @@ RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
            "ppo:rotor: 60 revolutions in simulation, 17 on the substitute, 100 % success"),
     Recipe("swingup_adaptive", (
         Stage("imitation", "swingup", 2_000_000, 10, teacher="swingup", randomization="wide",
-              hyperparameters={"history": 8, "policy_kwargs": {
-                  "net_arch": {"pi": [128, 128], "vf": [64, 64]}, "activation_fn": "tanh",
-                  "log_std_init": -1.0, "ortho_init": False}}),
-        # PPO from the imitated actor with small exploration noise (gSDE log-std -4, the imitation's -1)
-        # and small steps: with -1 or -2, or a learning rate of 1e-4, it undoes the imitated feedback
+              hyperparameters={"history": 8, "policy_kwargs": IMITATION_ACTOR}),
         Stage("ppo", "swingup", 1_000_000, 1.3, init="imitation", randomization="wide",
-              hyperparameters={"history": 8, "init_log_std": -4.0, "learning_rate": 3e-5,
-                               "clip_range": 0.1})),
+              hyperparameters={"history": 8, **SMALL_PPO_STEPS})),
         "ppo:swingup_adaptive: 100 % success on each of 10 held-out plants (benchmarks/held_out.py)"),
     Recipe("swingup_follow_sine", (
         # the follow controller's tracking, imitated on the sine: PPO on the task's reward alone
         # leaves the target (its arm term is small; docs/reinforcement-learning.md)
         Stage("imitation", "swingup_follow", 2_000_000, 5.2, teacher="follow", randomization="sim2real",
-              task_kwargs={"target": "sine"}, hyperparameters={"history": 8, "policy_kwargs": {
-                  "net_arch": {"pi": [128, 128], "vf": [64, 64]}, "activation_fn": "tanh",
-                  "log_std_init": -1.0, "ortho_init": False}}),
-        Stage("ppo", "swingup_follow", 1_000_000, 1.2, init="imitation", randomization="sim2real",
               task_kwargs={"target": "sine"},
-              hyperparameters={"history": 8, "init_log_std": -4.0, "learning_rate": 3e-5,
-                               "clip_range": 0.1})),
+              hyperparameters={"history": 8, "policy_kwargs": IMITATION_ACTOR}),
+        Stage("ppo", "swingup_follow", 1_000_000, 1.2, init="imitation", randomization="sim2real",
+              task_kwargs={"target": "sine"}, hyperparameters={"history": 8, **SMALL_PPO_STEPS})),
         "ppo:swingup_follow_sine: follows the 0.2 Hz +-45 degree sine (--target sine) to 0.03 rad "
         "on both domains, 100 % success"),
 )}
