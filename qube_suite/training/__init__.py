@@ -63,15 +63,6 @@ def _describe(randomization: Any) -> Any:
     return "custom"
 
 
-def _init_history(init: pathlib.Path | policies.MLPPolicy) -> int:
-    """The observation history of a policy file, or of the run in a directory (0 if it has none)."""
-    if isinstance(init, policies.MLPPolicy):
-        return init.history
-    record = init / "training.json"
-    return int(json.loads(record.read_text()).get("hyperparameters", {}).get("history", 0)
-               if record.is_file() else 0)
-
-
 def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, randomization: Any = None,
           domain: str = "qube", out: str | pathlib.Path | None = None, num_envs: int | None = None,
           domain_kwargs: dict[str, Any] | None = None, evaluations: int = 20, eval_episodes: int = 8,
@@ -151,9 +142,12 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
                              "nor a policy file")
     if (hyperparameters or {}).get("init_log_std") is not None and init is None:
         raise ValueError("init_log_std is the exploration noise of a warm start: give init")
-    if init is not None and "history" not in (hyperparameters or {}):  # the init's history goes on
-        hyperparameters = {**(hyperparameters or {}), "history": _init_history(init)}
     require_rl()
+    if init is not None and "history" not in (hyperparameters or {}):  # the init's history goes on
+        from qube_suite.training import warm_start
+
+        history = init.history if isinstance(init, policies.MLPPolicy) else warm_start.run_history(init)
+        hyperparameters = {**(hyperparameters or {}), "history": history}
     return _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
                   eval_episodes, checkpoints, progress, {**HYPERPARAMETERS[algo], **(hyperparameters or {})},
                   init, exploring_starts, resume, task_kwargs, calibration)
