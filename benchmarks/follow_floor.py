@@ -129,6 +129,7 @@ def measure(name: str, domain: str, task: str, task_kwargs: dict, episodes: int,
     """(the controller's follow error, the planned crossings' error on the same steps) (rad)."""
     environment = suite.load(domain, task, task_kwargs={"random": 0, **task_kwargs})
     recorder = TargetRecorder(baselines.for_environment(name, environment))
+    environment.close()  # it only told the controller its settings; `evaluate` makes its own
     result = evaluate(recorder, domain, task, episodes=episodes, task_kwargs=task_kwargs)
     settled = success_steps(CONTROL_FREQUENCY)
     floor = np.concatenate([planned_error(targets, table)[settled:] for targets in recorder.targets()])
