@@ -83,12 +83,11 @@ class CrossingTable:
         if size > self.sizes[-1] + 1e-9:
             raise ValueError(f"a crossing of {math.degrees(size):.1f} degrees is beyond the table's "
                              f"{math.degrees(self.sizes[-1]):.0f}")
-        scale = np.interp(size, np.concatenate([[0.0], self.sizes]), np.arange(len(self.sizes) + 1))
-        lower = int(scale)
-        if lower == 0:  # below the smallest size: its shape, scaled
+        upper = min(int(np.searchsorted(self.sizes, size)), len(self.sizes) - 1)
+        if upper == 0:  # up to the smallest size: its shape, scaled
             return size * self.relative[0]
-        upper, weight = min(lower + 1, len(self.sizes)), scale - lower
-        return size * ((1 - weight) * self.relative[lower - 1] + weight * self.relative[upper - 1])
+        weight = (size - self.sizes[upper - 1]) / (self.sizes[upper] - self.sizes[upper - 1])
+        return size * ((1 - weight) * self.relative[upper - 1] + weight * self.relative[upper])
 
 
 def planned_error(targets: np.ndarray, table: CrossingTable) -> np.ndarray:
