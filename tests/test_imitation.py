@@ -44,8 +44,36 @@ def test_teachers_label_each_world_and_restart_the_ones_asked():
     apart = teachers.labels(np.array([trig(NEXT)] * 2))
     assert apart[0] < apart[1] - 0.6  # their observers heard different voltages
     fresh = baselines.make("swingup", latency_steps=imitation.TEACHER_LATENCY_STEPS)(NEXT)
-    teachers.reset(np.array([False, True]))
+    teachers.reset(np.array([False, True]), [{}, {}])
     assert teachers.labels(np.array([trig(NEXT)] * 2))[1] == pytest.approx(fresh)  # world 1 starts afresh
+
+
+def test_teachers_that_know_the_plant_are_built_for_each_episodes_draw():
+    heavy = {"parameters": {"pendulum_mass": 0.032, "motor_resistance": 10.0},
+             "effects": {"action_delay": {"steps": np.int64(1)}}}
+    teachers = imitation.Teachers("swingup", 2, 3.0, knows_plant=True)
+    teachers.reset(np.array([True, True]), [heavy, {}])
+    labels = teachers.labels(np.array([trig(UPRIGHT)] * 2))
+    for_heavy = baselines.make("swingup", voltage_limit=3.0, latency_steps=1, parameters=heavy["parameters"])
+    nominal = baselines.make("swingup", voltage_limit=3.0, latency_steps=0)  # no delay drawn: none
+    assert labels[0] == pytest.approx(for_heavy(UPRIGHT)) and labels[1] == pytest.approx(nominal(UPRIGHT))
+    assert abs(labels[0] - labels[1]) > 0.05  # a heavier pendulum on a weaker motor needs more voltage
+    unaware = imitation.Teachers("swingup", 1, 3.0)
+    unaware.reset(np.array([True]), [heavy])  # told the draw, but built for the nominal Qube
+    assert unaware.labels(np.array([trig(UPRIGHT)]))[0] == pytest.approx(
+        baselines.make("swingup", voltage_limit=3.0, latency_steps=imitation.TEACHER_LATENCY_STEPS)(UPRIGHT))
+
+
+def test_teachers_are_built_with_their_settings():
+    teachers = imitation.Teachers("ilqr", 1, 3.0, settings={"swing_up": "energy", "reference_speed": 2.0})
+    hanging = np.array([0.0, np.pi, 0.0, 0.0])
+    expected = baselines.make("swingup", voltage_limit=3.0, latency_steps=imitation.TEACHER_LATENCY_STEPS)
+    assert teachers.labels(np.array([trig(hanging)]))[0] == pytest.approx(expected(hanging))
+    knowing = imitation.Teachers("ilqr", 1, 3.0, knows_plant=True, settings={"reference_speed": 2.0})
+    knowing.reset(np.array([True]), [{"parameters": {"pendulum_mass": 0.03}}])
+    controller = knowing._controllers[0]
+    assert controller.reference_speed == 2.0 and controller.observer.latency_steps == 0
+    assert controller.model.gravity_torque == pytest.approx(0.03 * 9.81 * 0.129 / 2, rel=0.01)
 
 
 def test_teachers_of_a_follow_task_read_its_target_from_the_features():
@@ -63,6 +91,9 @@ def test_teachers_of_a_follow_task_read_its_target_from_the_features():
     ({"teacher": "rotor"}, "not made for task 'swingup'"),
     ({"steps": 5, "iterations": 10}, "steps >= iterations >= 1"),
     ({"exploring_starts": 1.5}, "exploring_starts must be a fraction"),
+    ({"teacher_knows_plant": "yes"}, "teacher_knows_plant must be True or False"),
+    ({"teacher_settings": {"latency_steps": 2}}, "imitation sets latency_steps itself"),
+    ({"teacher_settings": {"swing_up": "energy"}}, "'swingup' got an unexpected keyword argument 'swing_up'"),
     ({"randomization": "widest"}, "unknown randomization preset 'widest'"),
 ])
 def test_bad_settings_are_refused_before_any_environment(kwargs, message):

@@ -138,7 +138,8 @@ def test_importing_qube_suite_and_running_a_policy_does_not_import_torch():
     assert result.stdout.strip() == "[]"
 
 
-VARIANTS = {"ppo:swingup_adaptive": "swingup", "ppo:swingup_follow_sine": "swingup_follow"}
+VARIANTS = {"ppo:swingup_adaptive": "swingup", "ppo:swingup_follow_sine": "swingup_follow",
+            "ppo:swingup_follow_steps": "swingup_follow"}
 """Shipped policies named after their task and a variant: spec -> task."""
 
 
@@ -162,20 +163,27 @@ def test_shipped_policies_reach_their_targets_on_unseen_seeds(spec, task, least)
 
 SINE = {"target": "sine"}
 """The slow sine schedule (0.2 Hz, +-45 degrees) `ppo:swingup_follow_sine` was trained on."""
+STEPS = {"target": "steps", "target_hold_time": 3.0}
+"""Steps held 3 s within +-60 degrees, which `ppo:swingup_follow_steps` was trained on."""
+SLOW_FOLLOWERS = [("ppo:swingup_follow_sine", SINE, "ppo:swingup_follow", 0.5),
+                  ("ppo:swingup_follow_steps", STEPS, "ppo:swingup_follow_sine", 0.3)]
+"""(policy, the schedule it follows, a policy trained on another schedule, that one's least error)."""
 
 
-def test_the_sine_follower_tracks_the_sine_where_the_jump_trained_policy_does_not():
-    kwargs = {"task": "swingup_follow", "episodes": 2, "seed": 1000, "task_kwargs": SINE}
-    result = evaluate("ppo:swingup_follow_sine", **kwargs)
+@pytest.mark.parametrize(("spec", "schedule", "other", "other_error"), SLOW_FOLLOWERS)
+def test_a_slow_follower_follows_its_schedule_where_another_policy_does_not(spec, schedule, other,
+                                                                             other_error):
+    kwargs = {"task": "swingup_follow", "episodes": 2, "seed": 1000, "task_kwargs": schedule}
+    result = evaluate(spec, **kwargs)
     assert result.success_rate == 1.0 and result.follow_error < 0.1, (result.returns, result.follow_error)
-    assert evaluate("ppo:swingup_follow", **kwargs).follow_error > 0.5
+    assert evaluate(other, **kwargs).follow_error > other_error
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("task", ["swingup_follow", "balance_follow"])
-def test_the_sine_follower_tracks_the_sine_on_the_hardware_substitute(task):
-    result = evaluate("ppo:swingup_follow_sine", domain="qube_hardware", task=task, episodes=2, seed=1000,
-                      task_kwargs=SINE)
+@pytest.mark.parametrize(("spec", "schedule"), [(spec, schedule) for spec, schedule, _, _ in SLOW_FOLLOWERS])
+def test_a_slow_follower_follows_its_schedule_on_the_hardware_substitute(spec, schedule, task):
+    result = evaluate(spec, domain="qube_hardware", task=task, episodes=2, seed=1000, task_kwargs=schedule)
     assert result.success_rate == 1.0 and result.follow_error < 0.1, (result.returns, result.follow_error)
 
 

@@ -36,6 +36,30 @@ def test_sb3_vec_env_resets_in_the_step_and_passes_terminal_observations():
     venv.close()
 
 
+def test_sb3_vec_env_reset_infos_hold_what_each_world_drew_for_its_episode():
+    pytest.importorskip("stable_baselines3")
+    import gymnasium
+
+    from qube_suite.wrappers.sb3 import make_sb3_vec_env
+
+    venv = make_sb3_vec_env("QubeSuite/Balance-v0", num_envs=2, time_limit=0.02, randomization="sim2real")
+    venv.seed(7)
+    venv.reset()
+    single = gymnasium.make("QubeSuite/Balance-v0", time_limit=0.02, randomization="sim2real")
+    _, drawn = single.reset(seed=8)  # world 1 replays a single Qube seeded as it is
+    assert venv.reset_infos[1]["parameters"] == pytest.approx(drawn["parameters"])
+    assert venv.reset_infos[1]["effects"]["action_delay"] == drawn["effects"]["action_delay"]
+    first = dict(venv.reset_infos[1]["parameters"])
+    for _ in range(5):  # the episodes end and restart within the fifth step
+        venv.step(np.zeros((2, 1), np.float32))
+    _, again = single.reset()  # the single Qube's next episode
+    assert venv.reset_infos[1]["parameters"] == pytest.approx(again["parameters"])
+    assert venv.reset_infos[1]["parameters"] != pytest.approx(first)
+    assert "final_obs" not in venv.reset_infos[1] and "_parameters" not in venv.reset_infos[1]
+    single.close()
+    venv.close()
+
+
 def test_sb3_trains_on_it_for_a_few_steps():
     pytest.importorskip("stable_baselines3")
     from stable_baselines3 import PPO

@@ -47,7 +47,7 @@ from qube_suite.baselines.follow import REFERENCE_LIMIT, REFERENCE_STEP, TargetS
 from qube_suite.baselines.lqr import BalanceLQR
 from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.baselines.observer import UNMODELLED_TORQUE
-from qube_suite.baselines.swingup import CATCH_VOLTAGE, RELEASE_VOLTAGE
+from qube_suite.baselines.swingup import CATCH_VOLTAGE, RELEASE_VOLTAGE, SwingupController
 from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
 
 DIAGONAL = (np.arange(4), np.arange(4))
@@ -61,6 +61,9 @@ balanced set (which switches the lean limit off) and then swept the arm through 
 17 rad/s, which neither the arm-limit cost nor 3 V of braking could stop before the board's
 120 degree safety limit. Led by a reference the arm can follow with the pendulum up, the same
 episodes keep the arm within 81 degrees."""
+
+SWING_UPS = ("plan", "energy")
+"""`IterativeLQR`'s swing-ups: planned by the MPC, or by `SwingupController`'s energy shaping."""
 
 MAX_REGULARIZATION = 10.0
 """Largest mu (the kernel's too): beyond it a step would only be shorter."""
@@ -101,8 +104,8 @@ class IterativeLQR(Controller):
     over the latency) and sends the plan's first voltage. The arm reference is the
     target within +-60 degrees, extrapolated over the horizon with the target's
     speed (estimated as in `FollowController`), and led towards a far target as a
-    ramp: at most 20 degrees from the arm at the first knot, then 3 rad/s
-    (`REFERENCE_SPEED`).
+    ramp: at most 20 degrees from the arm at the first knot, then `reference_speed`
+    (3 rad/s, `REFERENCE_SPEED`).
 
     While the pendulum is balanced (its lean and speed inside the balance LQR's catch
     ellipsoid, the arm's state left out; it leaves outside the larger release
@@ -122,11 +125,22 @@ class IterativeLQR(Controller):
     Three iterations a step (0.5 ms) rather than one converge to a jumped target's
     plan within a few steps instead of 0.2 s.
 
+    With `swing_up="energy"` the plan starts only once the pendulum is balanced, from the
+    balance LQR's closed loop; until then, and whenever the pendulum leaves the balanced
+    set, `SwingupController` swings it up (energy shaping about the arm's set-point, as in
+    `FollowController`). That swing-up is a smooth function of the state, which a network
+    can learn by imitation; the planned one ("plan") is near time-optimal, bang-bang at the
+    voltage limit, and has not been learnt (docs/reinforcement-learning.md).
+
     Args:
         control_frequency, voltage_limit, parameters, latency_steps: as `Controller`.
         horizon: planning horizon (s); the knots are one control period apart.
         iterations: iLQR iterations per control step.
-        cost: the cost's weights.
+        cost: the cost's weights: a `Cost`, or a mapping of its fields to change from the defaults
+            (e.g. `{"lean_limit": math.radians(8)}`).
+        reference_speed: fastest the arm reference moves away from the arm (rad/s); 2 rather
+            than 3 leans the pendulum less on large steps and follows them a little later.
+        swing_up: "plan" (the MPC plans the swing-up) or "energy" (energy shaping swings up).
     """
 
     name = "ilqr"
@@ -135,13 +149,21 @@ class IterativeLQR(Controller):
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
                  parameters: Mapping[str, float] | None = None, latency_steps: int = 0,
-                 horizon: float = 0.8, iterations: int = 3, cost: Cost | None = None):
+                 horizon: float = 0.8, iterations: int = 3, cost: Cost | Mapping[str, float] | None = None,
+                 reference_speed: float = REFERENCE_SPEED, swing_up: str = "plan"):
         super().__init__(control_frequency, voltage_limit, parameters, latency_steps)
         if not (isinstance(iterations, int) and iterations >= 1):
             raise ValueError(f"iterations must be a positive integer, got {iterations!r}")
         if not (isinstance(horizon, (int, float)) and horizon * control_frequency >= 2):
             raise ValueError(f"horizon must cover at least two control periods, got {horizon!r} s")
-        self.cost = cost or Cost()
+        if not (isinstance(reference_speed, (int, float)) and reference_speed > 0):
+            raise ValueError(f"reference_speed must be a positive speed in rad/s, got {reference_speed!r}")
+        if swing_up not in SWING_UPS:
+            raise ValueError(f"unknown swing_up {swing_up!r}; valid: {', '.join(SWING_UPS)}")
+        self.cost = cost if isinstance(cost, Cost) else cost_from(cost or {})
+        self.reference_speed = float(reference_speed)
+        self.swingup = (SwingupController(control_frequency, voltage_limit, parameters)
+                        if swing_up == "energy" else None)
         self.target_speed = TargetSpeed(control_frequency)
         self.iterations = iterations
         self.balance = BalanceLQR(control_frequency, voltage_limit, parameters)
@@ -164,6 +186,8 @@ class IterativeLQR(Controller):
         self.balancing = False
         self._started = False
         self.target_speed.reset()
+        if self.swingup is not None:
+            self.swingup.reset()
 
     def voltage_for(self, state: np.ndarray, target: float = 0.0) -> float:
         """Voltage (V) for `state` [theta, alpha, dtheta, dalpha] with the arm's target at `target` (rad)."""
@@ -172,6 +196,11 @@ class IterativeLQR(Controller):
         state = np.array(state, dtype=np.float64)
         level = self._release_level if self.balancing else self._catch_level
         self.balancing = self.balance.cost_to_go(np.array([0.0, wrap_angle(state[1]), 0.0, state[3]])) < level
+        if self.swingup is not None:
+            volts = self.swingup.voltage_for(state, arm_set_point(state[0], target))  # it learns every swing
+            if not self.balancing:
+                self._started = False  # the plan starts afresh at the next catch
+                return volts
         kernel.lean_limit = self.cost.lean_limit if self.balancing else math.inf
         if self._started:
             kernel.shift(1)
@@ -189,12 +218,12 @@ class IterativeLQR(Controller):
     def _reference(self, theta: float, target: float, speed: float) -> tuple[np.ndarray, np.ndarray]:
         """The arm reference r_n and its speed r'_n (rad, rad/s) at the plan's knots, for the arm at
         `theta` and the target at `target` moving at `speed`: the target extrapolated with its speed
-        within +-`REFERENCE_LIMIT`, and within `REFERENCE_STEP` + `REFERENCE_SPEED` t_n of the arm."""
+        within +-`REFERENCE_LIMIT`, and within `REFERENCE_STEP` + `reference_speed` t_n of the arm."""
         reference = np.clip(target + speed * self._times, -REFERENCE_LIMIT, REFERENCE_LIMIT)
         reference_speed = np.where(np.abs(reference) < REFERENCE_LIMIT, speed, 0.0)
-        reach = REFERENCE_STEP + REFERENCE_SPEED * self._times
+        reach = REFERENCE_STEP + self.reference_speed * self._times
         ramp = np.clip(reference, theta - reach, theta + reach)
-        ramp_speed = np.sign(ramp - theta) * REFERENCE_SPEED
+        ramp_speed = np.sign(ramp - theta) * self.reference_speed
         reference_speed = np.where(ramp == reference, reference_speed, ramp_speed)
         return ramp, reference_speed
 
@@ -222,11 +251,14 @@ class IterativeLQR(Controller):
     def _first_plan(self, state: np.ndarray, target: float) -> None:
         """The plan to start from. Near upright (inside the balance LQR's catch ellipsoid): the LQR's
         closed loop about the target; one iteration from 0 V alone would drop a pendulum that starts
-        balanced. Elsewhere: a swing of half the voltage limit at the pendulum's natural frequency; at
-        rest hanging, 0 V is a stationary point of the cost, where iLQR would stay."""
+        balanced. Caught after an energy swing-up: the LQR's closed loop about `FollowController`'s
+        arm set-point. Elsewhere: a swing of half the voltage limit at the pendulum's natural
+        frequency; at rest hanging, 0 V is a stationary point of the cost, where iLQR would stay."""
         kernel = self.kernel
         set_point = min(max(target, -REFERENCE_LIMIT), REFERENCE_LIMIT)
-        if self.balance.cost_to_go(state, set_point) < self._catch_level:
+        if self.swingup is not None:
+            self._lqr_plan(arm_set_point(state[0], target), state[1])
+        elif self.balance.cost_to_go(state, set_point) < self._catch_level:
             self._lqr_plan(set_point, 0.0)
         else:
             natural_frequency = math.sqrt(self.model.gravity_torque / self.model.pendulum_inertia)
@@ -234,6 +266,15 @@ class IterativeLQR(Controller):
             kernel.X[:] = state
             kernel.K[:] = 0.0
         self._started = True
+
+
+def cost_from(changes: Mapping[str, float]) -> Cost:
+    """`Cost()` with the fields named in `changes` changed; ValueError naming an unknown field."""
+    fields = [field.name for field in dataclasses.fields(Cost)]
+    unknown = sorted(set(changes) - set(fields))
+    if unknown:
+        raise ValueError(f"unknown cost weights {', '.join(unknown)}; valid: {', '.join(fields)}")
+    return Cost(**changes)
 
 
 def reference_iteration(model: RigidBodyModel, cost: Cost, h: float, voltage_limit: float, x0: np.ndarray,

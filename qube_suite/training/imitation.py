@@ -26,6 +26,15 @@ The run's directory is that of a training run (`model.zip`, `vecnormalize.pkl`,
 loss and the mean return of its episodes), so that a PPO run can start from it
 (`train(init=DIR, actor_warmup_steps=...)`: the value network, which imitation
 does not fit, learns first). Imports stable-baselines3 and torch.
+
+With `teacher_knows_plant`, each world's teacher is built, at the start of every
+episode, for the plant the world drew: its physical parameters and its actuation
+delay (a privileged teacher, as in Chen et al., "Learning by cheating", CoRL 2019;
+Kumar et al., "RMA: Rapid motor adaptation for legged robots", RSS 2021). The
+network still sees only the observations. A teacher whose model is far from the
+plant can label states it cannot recover from: under `sim2real`, `ilqr` built for
+the nominal Qube with a step of latency held the pendulum up in 16 of 20 episodes
+of balance_follow on 3 s steps, and in 20 of 20 built for each episode's plant.
 """
 
 from __future__ import annotations
@@ -63,6 +72,7 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
             seed: int = 0, randomization: Any = "wide", out: str | pathlib.Path | None = None,
             history: int = 8, exploring_starts: float = EXPLORING_STARTS,
             hyperparameters: dict[str, Any] | None = None, task_kwargs: dict[str, Any] | None = None,
+            teacher_knows_plant: bool = False, teacher_settings: dict[str, Any] | None = None,
             progress: bool = True) -> pathlib.Path:
     """Fit a PPO actor with `history` past steps to controller `teacher` on `task` by DAgger, over
     `steps` environment steps in `iterations` iterations, in simulation under `randomization`, a
@@ -72,6 +82,9 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
     `hyperparameters`: overrides of `HYPERPARAMETERS["ppo"]`, for the model the actor lives in (its
     `policy_kwargs` set the network's size) and for a PPO run that starts from it. `task_kwargs`:
     the task's settings, e.g. a follow task's target schedule (`{"target": "steps"}`), as `train`'s.
+    `teacher_knows_plant`: build each episode's teacher for the world's drawn parameters and delay.
+    `teacher_settings`: keyword arguments of the teacher's controller (e.g. `ilqr`'s
+    `{"swing_up": "energy", "reference_speed": 2.0}`).
     """
     if teacher not in baselines.CONTROLLERS:
         raise ValueError(f"unknown teacher {teacher!r}; controllers: {', '.join(baselines.CONTROLLERS)}")
@@ -81,6 +94,13 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
     if not (isinstance(steps, int) and isinstance(iterations, int) and steps >= iterations >= 1):
         raise ValueError(f"need integers steps >= iterations >= 1, got steps={steps!r}, "
                          f"iterations={iterations!r}")
+    teacher_settings = dict(teacher_settings or {})
+    owned = {"control_frequency", "voltage_limit", "latency_steps", "parameters"} & set(teacher_settings)
+    if owned:
+        raise ValueError(f"teacher_settings: imitation sets {', '.join(sorted(owned))} itself")
+    baselines.make(teacher, **teacher_settings)  # unknown or bad settings fail here
+    if not isinstance(teacher_knows_plant, bool):
+        raise ValueError(f"teacher_knows_plant must be True or False, got {teacher_knows_plant!r}")
     if not 0.0 <= exploring_starts <= 1.0:
         raise ValueError(f"exploring_starts must be a fraction in [0, 1], got {exploring_starts!r}")
     if randomization is not None:
@@ -95,18 +115,35 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
     settings = {**HYPERPARAMETERS["ppo"], **(hyperparameters or {}), "history": history}
     out = pathlib.Path(out or f"runs/imitation_{task}_{seed}")
     return _imitate(task, teacher, steps, iterations, seed, randomization, out, exploring_starts, settings,
-                    task_kwargs, progress)
+                    task_kwargs, teacher_knows_plant, teacher_settings, progress)
 
 
 class Teachers:
-    """One controller per world: labels each world's current features, hears what was really sent."""
+    """One controller per world, built with `settings`: labels each world's current features, hears
+    what was really sent.
 
-    def __init__(self, name: str, worlds: int, voltage_limit: float, target: bool = False):
-        self._controllers = [baselines.make(name, voltage_limit=voltage_limit,
-                                            latency_steps=TEACHER_LATENCY_STEPS) for _ in range(worlds)]
+    `knows_plant`: each episode's controller is built for the world's drawn plant (its reset info's
+    `"parameters"` and `"effects"`' action delay); otherwise for the nominal Qube with
+    `TEACHER_LATENCY_STEPS`.
+    """
+
+    def __init__(self, name: str, worlds: int, voltage_limit: float, target: bool = False,
+                 knows_plant: bool = False, settings: dict[str, Any] | None = None):
+        self._name, self._voltage_limit, self._knows_plant = name, voltage_limit, knows_plant
+        self._settings = dict(settings or {})
         self._target = target
-        for controller in self._controllers:  # they read the learner's trig features
-            controller.observation_layout = ObservationLayout("trig", target)
+        self._controllers = [self._build({}) for _ in range(worlds)]
+
+    def _build(self, drawn: dict[str, Any]):
+        """A controller for the nominal Qube, or (`knows_plant`) for the plant in reset info `drawn`."""
+        plant = {"latency_steps": TEACHER_LATENCY_STEPS}
+        if self._knows_plant:
+            delay = drawn.get("effects", {}).get("action_delay", {}).get("steps", 0)
+            parameters = {name: float(value) for name, value in drawn.get("parameters", {}).items()}
+            plant = {"latency_steps": int(delay), "parameters": parameters}
+        controller = baselines.make(self._name, voltage_limit=self._voltage_limit, **self._settings, **plant)
+        controller.observation_layout = ObservationLayout("trig", self._target)  # the learner's features
+        return controller
 
     def labels(self, features: np.ndarray) -> np.ndarray:
         """The teachers' voltages (V) for each world's `trig` features (rows; in a follow task the
@@ -121,14 +158,17 @@ class Teachers:
         for controller, value in zip(self._controllers, volts, strict=True):
             controller.sent(float(value))
 
-    def reset(self, worlds: np.ndarray) -> None:
-        """Start new episodes in the worlds of the boolean mask `worlds`."""
+    def reset(self, worlds: np.ndarray, reset_infos: list[dict[str, Any]]) -> None:
+        """Start new episodes in the worlds of the boolean mask `worlds`, whose reset infos (what each
+        world drew) are `reset_infos` (one per world, as SB3's `VecEnv.reset_infos`)."""
         for world in np.flatnonzero(worlds):
+            if self._knows_plant:
+                self._controllers[world] = self._build(reset_infos[world])
             self._controllers[world].reset()
 
 
 def _imitate(task, teacher, steps, iterations, seed, randomization, out, exploring_starts, settings,
-             task_kwargs, progress) -> pathlib.Path:
+             task_kwargs, teacher_knows_plant, teacher_settings, progress) -> pathlib.Path:
     import stable_baselines3
     import torch
     from stable_baselines3.common.running_mean_std import RunningMeanStd
@@ -157,7 +197,8 @@ def _imitate(task, teacher, steps, iterations, seed, randomization, out, explori
     actor = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters()]
     optimizer = torch.optim.Adam(actor, lr=LEARNING_RATE)
     voltage_limit = float(venv.action_space.high[0])
-    teachers = Teachers(teacher, num_envs, voltage_limit, target=suite.make_task("qube", task).follows_target)
+    teachers = Teachers(teacher, num_envs, voltage_limit, target=suite.make_task("qube", task).follows_target,
+                        knows_plant=teacher_knows_plant, settings=teacher_settings)
     statistics = RunningMeanStd(shape=venv.observation_space.shape)
     random = np.random.default_rng(seed)
     features = venv.venv.observation_space.shape[0] if history else venv.observation_space.shape[0]
@@ -178,7 +219,7 @@ def _imitate(task, teacher, steps, iterations, seed, randomization, out, explori
     bar = Progress(per_iteration * num_envs * iterations, "step", "imitation") if progress else None
     start = time.perf_counter()
     observations = venv.reset()
-    teachers.reset(np.ones(num_envs, bool))
+    teachers.reset(np.ones(num_envs, bool), venv.unwrapped.reset_infos)
     for iteration in range(iterations):
         beta = 1.0 if iteration == 0 else max(0.0, 1.0 - BETA_DECAY * iteration)
         inputs = np.empty((per_iteration, num_envs, observations.shape[1]), np.float32)
@@ -191,7 +232,7 @@ def _imitate(task, teacher, steps, iterations, seed, randomization, out, explori
                                                              act(observations))
             teachers.sent(sent)
             observations, _, dones, infos = venv.step(sent[:, None])
-            teachers.reset(dones)
+            teachers.reset(dones, venv.unwrapped.reset_infos)
             returns += [info["episode"]["r"] for info in infos if "episode" in info]
             if bar is not None:
                 bar.advance_to((iteration * per_iteration + step + 1) * num_envs)
@@ -217,7 +258,9 @@ def _imitate(task, teacher, steps, iterations, seed, randomization, out, explori
     record = {"algo": "ppo", "task": task, "domain": "qube", "randomization":
               randomization if isinstance(randomization, str) or randomization is None else "custom",
               "seed": seed, "num_envs": num_envs, "teacher": teacher, "iterations": iterations,
-              "exploring_starts": exploring_starts, "task_kwargs": task_kwargs, "hyperparameters": given,
+              "exploring_starts": exploring_starts, "task_kwargs": task_kwargs,
+              "teacher_knows_plant": teacher_knows_plant, "teacher_settings": teacher_settings,
+              "hyperparameters": given,
               "steps": iterations * per_iteration * num_envs, "wall_time_s": wall_time,
               "final_loss_v2": rows[-1]["loss_v2"], "stable_baselines3": stable_baselines3.__version__}
     save(export.from_sb3(model, statistics.mean, statistics.var, epsilon=normalized.epsilon,

@@ -30,7 +30,8 @@ class SB3VecEnv(VecEnv):
     telling truncation from termination; the wrapped environment must therefore use
     `autoreset_mode=SAME_STEP`. Attributes and methods reached through `get_attr`,
     `set_attr` and `env_method` are those of the `QubeVectorEnv`, which serves every
-    index.
+    index. As in SB3's `DummyVecEnv`, `reset_infos[i]` is world i's info at the start of
+    its current episode: with a randomization, what it drew (`"parameters"`, `"effects"`).
     """
 
     def __init__(self, env: QubeVectorEnv):
@@ -42,8 +43,9 @@ class SB3VecEnv(VecEnv):
 
     def reset(self) -> np.ndarray:
         seeds = self._seeds if any(seed is not None for seed in self._seeds) else None
-        observations, _ = self.env.reset(seed=seeds)
+        observations, info = self.env.reset(seed=seeds)
         self._reset_seeds()
+        self.reset_infos = [world_info(info, world) for world in range(self.num_envs)]
         return observations
 
     def step_async(self, actions: np.ndarray) -> None:
@@ -56,6 +58,7 @@ class SB3VecEnv(VecEnv):
         for world in np.flatnonzero(dones).tolist():
             infos[world]["terminal_observation"] = info["final_obs"][world]
             infos[world]["TimeLimit.truncated"] = bool(truncated[world])
+            self.reset_infos[world] = world_info(info, world)
         return observations, rewards.astype(np.float32), dones, infos
 
     def close(self) -> None:
@@ -78,6 +81,15 @@ class SB3VecEnv(VecEnv):
         if indices is None:
             return range(self.num_envs)
         return [indices] if isinstance(indices, int) else list(indices)
+
+
+def world_info(info: dict[str, Any], world: int) -> dict[str, Any]:
+    """World `world`'s entries of a Gymnasium vector environment's `info` (each key's value at
+    `world` where its mask `_key` is set; nested dicts likewise), as its single environment's
+    info would hold them."""
+    return {key: world_info(value, world) if isinstance(value, dict) else value[world]
+            for key, value in info.items()
+            if not key.startswith("_") and key not in ("final_obs", "final_info") and info[f"_{key}"][world]}
 
 
 def make_sb3_vec_env(env_id: str, num_envs: int, **kwargs) -> SB3VecEnv:
