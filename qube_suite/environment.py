@@ -12,6 +12,7 @@ from dm_env import specs
 
 from qube_suite import randomization as randomization_
 from qube_suite.arguments import is_number
+from qube_suite.capabilities import Closable
 from qube_suite.episode_rules import judge_step
 from qube_suite.tasks.base import voltage_from_action
 
@@ -234,4 +235,4 @@ class Environment(control.Environment):
     @property
     def closed(self) -> bool:
         """Whether the domain was closed for good (the simulated Qube after `close()`)."""
-        return getattr(self._physics, "closed", False)
+        return isinstance(self._physics, Closable) and self._physics.closed

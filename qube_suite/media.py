@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 
 from qube_suite import extras
+from qube_suite.capabilities import HasBoard
 from qube_suite.episodes import EpisodeTrace, Policy, run_episode
 
 DEFAULT_CAMERA = "front_oblique"
@@ -253,7 +254,8 @@ def record_video(environment: Any, policy: Policy, path: str | os.PathLike, epis
 def films_after_episode(environment: Any) -> bool:
     """True if `environment`'s episodes must be filmed from their traces after they have run
     (hardware, where rendering inside the loop would miss samples)."""
-    return bool(getattr(environment.physics, "paced_by_board", False))
+    physics = environment.physics
+    return isinstance(physics, HasBoard) and physics.paced_by_board
 
 
 def write_video(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: float) -> int:

@@ -46,6 +46,8 @@ from typing import Any
 
 import numpy as np
 
+from qube_suite.capabilities import HasBoard
+
 FORMAT = "qube_suite.recording"
 VERSION = 1
 
@@ -130,7 +132,7 @@ class Recorder:
         """Write the episode's header and its first row."""
         physics, task = environment.physics, environment.task
         observation = [(key, spec.shape[0]) for key, spec in task.observation_spec(physics).items()]
-        self._raw = hasattr(physics, "raw_readings")
+        self._raw = isinstance(physics, HasBoard)
         columns = [*COLUMNS, *(f"obs_{key}_{i}" for key, size in observation for i in range(size))]
         if self._raw:
             columns += [f"raw_{name}" for name in physics.raw_readings()]

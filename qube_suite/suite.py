@@ -6,49 +6,58 @@
 
 from __future__ import annotations
 
-import importlib
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any
 
-from qube_suite.arguments import check_keywords, keywords_of
+from qube_suite import devices
+from qube_suite.arguments import check_keywords
+from qube_suite.capabilities import HasBoard, NeedsResetControllers
 from qube_suite.environment import DEFAULT_CONTROL_FREQUENCY, Environment
-from qube_suite.tasks import SUITE as _TASKS
 from qube_suite.tasks import QubeTask
-from qube_suite.tasks.follow import SCHEDULE_KEYWORDS
-
-_DOMAIN_MODULES = {
-    "qube": "qube_suite.domains.qube",
-    "qube_hardware": "qube_suite.domains.qube_hardware",
-}
-"""Domain name -> module with `make_physics(control_frequency, **domain_kwargs)` and the tuple
-`DOMAIN_KWARGS` of the keys `domain_kwargs` may hold."""
 
 ENVIRONMENT_KWARGS = ("control_frequency", "time_limit", "flat_observation")
 """Keys `environment_kwargs` may hold."""
 
-TASK_KWARGS = keywords_of(QubeTask, skip=("worlds",)) + SCHEDULE_KEYWORDS
-"""Keys `task_kwargs` may hold (every task takes the same, but for the target schedule's, which only
-the follow tasks take; sparse variants are separate tasks)."""
 
-TASKS_BY_DOMAIN: dict[str, tuple[str, ...]] = {domain: tuple(_TASKS) for domain in _DOMAIN_MODULES}
-"""Domain name -> names of its tasks."""
+class _TasksByDomain(Mapping):
+    """Domain name -> names of its tasks, read from the device registry at every lookup: a task
+    registered after import is there."""
 
-ALL_TASKS: tuple[tuple[str, str], ...] = tuple(
-    (domain, task) for domain, tasks in TASKS_BY_DOMAIN.items() for task in tasks)
-"""Every (domain, task) pair."""
+    def __getitem__(self, domain_name: str) -> tuple[str, ...]:
+        return devices.domain(domain_name).task_names()
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(devices.domains())
+
+    def __len__(self) -> int:
+        return len(devices.domains())
 
 
-def _tagged(tag: str) -> tuple[tuple[str, str], ...]:
-    return tuple((domain, task) for domain in _DOMAIN_MODULES for task in _TASKS.tagged(tag))
+TASKS_BY_DOMAIN: Mapping[str, tuple[str, ...]] = _TasksByDomain()
+"""Domain name -> names of its tasks (the tasks registered so far)."""
 
 
-BENCHMARKING = _tagged("benchmarking")
-"""The dense tasks."""
-SPARSE = _tagged("sparse")
-"""The sparse-reward variants."""
-FOLLOW = _tagged("follow")
-"""The tasks with a moving arm target."""
+def tagged(tag: str) -> tuple[tuple[str, str], ...]:
+    """Every (domain, task) pair whose task has `tag` ("benchmarking", "sparse", "follow")."""
+    return tuple((name, task) for name, domain in devices.domains().items()
+                 for task in domain.device.task_suite().tagged(tag))
+
+
+_PAIRS = {
+    "ALL_TASKS": lambda: tuple((domain, task) for domain, tasks in TASKS_BY_DOMAIN.items() for task in tasks),
+    "BENCHMARKING": lambda: tagged("benchmarking"),
+    "SPARSE": lambda: tagged("sparse"),
+    "FOLLOW": lambda: tagged("follow"),
+}
+"""dm_control's tuples of (domain, task) pairs, read at every access: `ALL_TASKS`, `BENCHMARKING` (the
+dense tasks), `SPARSE` (the sparse-reward variants), `FOLLOW` (the tasks with a moving arm target)."""
+
+
+def __getattr__(name: str):
+    if name in _PAIRS:
+        return _PAIRS[name]()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None = None,
@@ -58,11 +67,13 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
 
     Args:
         domain_name: "qube" (MuJoCo simulation) or "qube_hardware" (a Quanser
-            board: the compiled substitute by default, or a real Qube).
+            board: the compiled substitute by default, or a real Qube); every device's
+            domains are in `qube_suite.devices.domains()`.
         task_name: one of `TASKS_BY_DOMAIN[domain_name]`.
-        task_kwargs: passed to the task: `random` (seed), `voltage_limit` (V),
-            `observation` ("state" or "trig"); in follow tasks, the target schedule
-            (`target`, `target_amplitude`, ...: see `qube_suite.tasks.follow`).
+        task_kwargs: passed to the task's factory, which says which it takes
+            (`TaskSuite.keywords`): `random` (seed), `voltage_limit` (V), `observation`
+            ("state" or "trig"); in follow tasks, the target schedule (`target`,
+            `target_amplitude`, ...: see `qube_suite.tasks.follow`).
         environment_kwargs: `control_frequency` (Hz, default 250), `time_limit` (s,
             default 8.192) and `flat_observation` (dm_control's: one concatenated
             array under the key "observations").
@@ -83,14 +94,14 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
     task = make_task(domain_name, task_name, task_kwargs)
     environment_kwargs = dict(environment_kwargs or {})
     check_keywords(environment_kwargs, ENVIRONMENT_KWARGS, "environment_kwargs")
-    domain = importlib.import_module(_DOMAIN_MODULES[domain_name])
+    domain = devices.domain(domain_name).module()
     domain_kwargs = dict(domain_kwargs or {})
     check_keywords(domain_kwargs, domain.DOMAIN_KWARGS, f"domain_kwargs of domain {domain_name!r}")
     frequency = environment_kwargs.get("control_frequency", DEFAULT_CONTROL_FREQUENCY)
     physics = domain.make_physics(control_frequency=frequency, **domain_kwargs)
-    if hasattr(physics, "set_reset_controllers"):
+    if isinstance(physics, NeedsResetControllers):
         _hand_reset_controllers(physics)
-    board_limit = getattr(physics, "max_voltage", math.inf)
+    board_limit = physics.max_voltage if isinstance(physics, HasBoard) else math.inf
     if task.voltage_limit > board_limit:
         physics.close()
         raise ValueError(f"the task's voltage_limit of {task.voltage_limit:g} V exceeds the board's "
@@ -98,7 +109,7 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
     return Environment(physics, task, randomization=randomization, **environment_kwargs)
 
 
-def _hand_reset_controllers(physics) -> None:
+def _hand_reset_controllers(physics: NeedsResetControllers) -> None:
     """Give a hardware domain the controllers that reach its episodes' starts. Domains never import
     controllers, so they are built here, for the domain's own Qube (its device's motor and the
     `parameters` or calibration it was given), before its board first samples."""
@@ -119,17 +130,22 @@ def make_task(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] |
     Raises:
         ValueError: unknown names or invalid arguments; the message lists valid values.
     """
-    if domain_name not in _DOMAIN_MODULES:
-        raise ValueError(f"unknown domain {domain_name!r}; valid domains: {', '.join(_DOMAIN_MODULES)}")
-    if task_name not in _TASKS:  # the registry as it is now: tasks registered after import too
-        raise ValueError(f"unknown task {task_name!r} for domain {domain_name!r}; valid tasks: "
-                         f"{', '.join(_TASKS)}")
     task_kwargs = dict(task_kwargs or {})
-    check_keywords(task_kwargs, TASK_KWARGS, "task_kwargs")
-    schedule = sorted(set(task_kwargs) & set(SCHEDULE_KEYWORDS))
-    if schedule and task_name not in _TASKS.tagged("follow"):
-        raise ValueError(f"{', '.join(schedule)}: only the follow tasks "
-                         f"({', '.join(_TASKS.tagged('follow'))}) have a target schedule")
+    check_keywords(task_kwargs, task_keywords(domain_name, task_name), f"task_kwargs of task {task_name!r}")
     if worlds is not None:
         task_kwargs["worlds"] = worlds
-    return _TASKS[task_name](**task_kwargs)
+    return devices.domain(domain_name).device.task_suite()[task_name](**task_kwargs)
+
+
+def task_keywords(domain_name: str, task_name: str) -> tuple[str, ...]:
+    """The keywords `task_kwargs` may hold for `task_name` of `domain_name`: those its factory takes
+    (`qube_suite.tasks.registry.task_keywords`).
+
+    Raises:
+        ValueError: an unknown domain or task; the message lists the valid ones.
+    """
+    tasks = devices.domain(domain_name).device.task_suite()
+    if task_name not in tasks:
+        raise ValueError(f"unknown task {task_name!r} for domain {domain_name!r}; valid tasks: "
+                         f"{', '.join(tasks)}")
+    return tasks.keywords(task_name)

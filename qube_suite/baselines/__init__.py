@@ -21,6 +21,7 @@ from qube_suite.baselines.lqr import BalanceLQR, lqr_gain
 from qube_suite.baselines.mpc import SamplingMPC
 from qube_suite.baselines.rotor import RotorController
 from qube_suite.baselines.swingup import SwingupController
+from qube_suite.capabilities import HasDesignParameters
 from qube_suite.domains.qube import check_control_frequency
 
 CONTROLLERS: dict[str, type[Controller]] = {
@@ -56,9 +57,10 @@ def for_environment(name: str, environment, **kwargs) -> Controller:
     settings = {"control_frequency": environment.control_frequency,
                 "voltage_limit": environment.task.voltage_limit,
                 "latency_steps": environment.physics.latency_steps}
-    design = getattr(environment.physics, "design_parameters", None)  # e.g. a Qube-Servo 3's motor
-    if design is not None and name in CONTROLLERS and "parameters" in keywords_of(CONTROLLERS[name]):
-        settings["parameters"] = design()
+    physics = environment.physics
+    if (isinstance(physics, HasDesignParameters)  # e.g. a Qube-Servo 3's motor
+            and name in CONTROLLERS and "parameters" in keywords_of(CONTROLLERS[name])):
+        settings["parameters"] = physics.design_parameters()
     controller = make(name, **{**settings, **kwargs})
     controller.observation_layout = environment.task.observation_layout
     return controller

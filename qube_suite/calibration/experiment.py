@@ -36,6 +36,7 @@ import numpy as np
 
 from qube_suite import suite
 from qube_suite.baselines.model import RigidBodyModel
+from qube_suite.capabilities import HasBoard
 from qube_suite.recording import Recorder
 
 EXCITATION_VOLTAGE = 6.0
@@ -151,7 +152,7 @@ def run(path: str | os.PathLike, domain: str = "qube_hardware",
 
 def _board_metadata(physics: Any) -> dict[str, Any]:
     """Board type, board name and identifier of a hardware domain's physics; the simulation's otherwise."""
-    qube = getattr(physics, "qube", None)
-    if qube is None:
+    if not isinstance(physics, HasBoard):
         return {"board_type": "simulation", "board": "simulation", "identifier": None}
+    qube = physics.qube
     return {"board_type": qube.device.board_type, "board": qube.board_name, "identifier": qube.identifier}

@@ -6,6 +6,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from qube_suite.capabilities import ActuatorEffects, Batch, Randomizable, SensorEffects, StepDurationEffects
 from qube_suite.randomization.base import Chain, Streams
 from qube_suite.randomization.catalog import EFFECTS
 from qube_suite.randomization.config import Randomization
@@ -15,17 +16,21 @@ from qube_suite.randomization.sampling import Sample, sample, sample_effects
 HOOKS = {"state": "set_sensor_model", "voltage": "set_actuator_model", "duration": "set_step_duration_model"}
 """Signal -> the domain method that installs effects on it."""
 
+CAPABILITIES = {"state": SensorEffects, "voltage": ActuatorEffects, "duration": StepDurationEffects}
+"""Signal -> the capability (`qube_suite.capabilities`) of a domain that takes effects on it."""
+
 
 class Randomizer:
     """Draws each episode's parameters and effects and applies them to a Qube domain: one Qube, or
     each Qube ("world") of a batch when it starts an episode.
 
-    The domain needs `set_parameters` for physical parameters and the hooks in HOOKS
-    for the effects it is asked to apply; a missing one is a ValueError here, before
-    any episode. Hooks the config does not use are left alone, so a domain without
-    randomization keeps its plain step path. A batch (`qube_suite.domains.qube_batch.QubeBatch`,
-    with `num_worlds`) takes effects on arrays with one row per world; a one-Qube domain
-    is a batch of one (`OneQube`) whose effects hold numbers and run on its floats.
+    The domain needs to be `Randomizable` for physical parameters and to have the
+    capabilities in CAPABILITIES for the effects it is asked to apply; a missing one is
+    a ValueError here, before any episode. Hooks the config does not use are left
+    alone, so a domain without randomization keeps its plain step path. A `Batch`
+    (`qube_suite.domains.qube_batch.QubeBatch`) takes effects on arrays with one row
+    per world; a one-Qube domain is a batch of one (`OneQube`) whose effects hold
+    numbers and run on its floats.
 
     World i draws from the random state it is given, and its noise and jitter come from
     a generator of its own (`Streams`) seeded by that draw, so world i of a batch
@@ -44,7 +49,7 @@ class Randomizer:
     def __init__(self, config: Randomization, domain, control_period: float):
         check_domain(config, domain)
         self.config = config
-        self._one = not hasattr(domain, "num_worlds")
+        self._one = not isinstance(domain, Batch)
         batch = OneQube(domain) if self._one else domain
         self._batch = batch
         self._control_period = control_period
@@ -111,19 +116,18 @@ class OneQube:
 
 def check_domain(config: Randomization, physics) -> None:
     """Raise ValueError unless the domain `physics` (one Qube or a batch) can apply everything
-    `config` randomizes: `set_parameters` for parameters it models, the hooks in HOOKS for effects."""
+    `config` randomizes: it is `Randomizable` for parameters it models, and has the capabilities in
+    CAPABILITIES for the effects."""
     if config.parameters:
-        if not hasattr(physics, "set_parameters"):
+        if not isinstance(physics, Randomizable):
             raise ValueError(f"{type(physics).__name__} cannot change physical parameters; "
                              f"randomize only effects on this domain")
-        unmodelled = [name for name in config.parameters
-                      if name in getattr(physics, "UNMODELLED_PARAMETERS", ())]
+        unmodelled = [name for name in config.parameters if name in physics.UNMODELLED_PARAMETERS]
         if unmodelled:
             raise ValueError(f"{type(physics).__name__} does not model {', '.join(unmodelled)}: "
                              f"randomizing it would change nothing")
     for signal in {EFFECTS[name].signal for name in config.effects}:
-        if not hasattr(physics, HOOKS[signal]):
+        if not isinstance(physics, CAPABILITIES[signal]):
             names = [name for name in config.effects if EFFECTS[name].signal == signal]
             raise ValueError(f"{type(physics).__name__} cannot apply {', '.join(names)} "
                              f"(it has no {HOOKS[signal]})")
-

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from qube_suite.tasks.goal import GoalTask
+from qube_suite.tasks.goal import FollowsTarget, GoalTask
 from qube_suite.tasks.registry import register
 
 PENDULUM_LIMIT = math.radians(20.0)
@@ -59,7 +59,7 @@ class Balance(GoalTask):
         return super().in_safe_set(physics) & (abs(physics.pendulum_angle()) <= PENDULUM_LIMIT)
 
 
-class BalanceFollow(Balance):
+class BalanceFollow(FollowsTarget, Balance):
     """Balance while the arm follows a moving target.
 
     As `Balance`, with the arm's goal theta_target following a schedule (`target`):
@@ -93,8 +93,6 @@ class BalanceFollow(Balance):
     v0: first release; the target schedule keywords were added later in v0, with
     "jump" (the first release's targets, draw for draw) the default.
     """
-
-    follows_target = True
 
 
 @register("benchmarking")

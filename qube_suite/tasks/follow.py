@@ -38,9 +38,6 @@ MEAN_HOLD_TIME = 0.5
 SCHEDULES = ("jump", "steps", "sine", "fixed")
 """Named schedules; `target` may also be the path of a CSV file."""
 
-SCHEDULE_KEYWORDS = ("target", "target_amplitude", "target_hold_time", "target_frequency", "target_angle")
-"""The follow tasks' keywords choosing and shaping the schedule."""
-
 _TIME_TOLERANCE = 1e-9
 """Slack (s) for comparing the episode's time with a scheduled change."""
 

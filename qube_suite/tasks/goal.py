@@ -17,33 +17,19 @@ class GoalTask(QubeTask):
     """Reward for pendulum and arm near their goal angles; dense or sparse.
 
     Subclasses say what the pendulum's error is. The arm's goal is theta = 0, or a
-    moving target in the follow variants (`follows_target = True`), which then
-    observe the target too.
+    moving target in the follow variants (`FollowsTarget`), which then observe the
+    target too.
 
     Args:
         sparse: reward 1 inside the goal set (pendulum within 10 degrees, arm within
             20 degrees of their goals), else 0; dense shaping otherwise.
-        target, target_amplitude, target_hold_time, target_frequency, target_angle:
-            the follow variants' target schedule (`qube_suite.tasks.follow.make_schedule`);
-            the other tasks take none of them.
         **kwargs: see `QubeTask`.
     """
 
-    def __init__(self, sparse: bool = False, target="jump", target_amplitude: float | None = None,
-                 target_hold_time: float | None = None, target_frequency: float | None = None,
-                 target_angle: float | None = None, **kwargs):
-        schedule = {"target_amplitude": target_amplitude, "target_hold_time": target_hold_time,
-                    "target_frequency": target_frequency, "target_angle": target_angle}
-        if not self.follows_target:
-            chosen = {"target": None if target == "jump" else target, **schedule}
-            given = [key for key, value in chosen.items() if value is not None]
-            if given:
-                raise ValueError(f"{', '.join(given)}: only the follow tasks have a target schedule")
+    def __init__(self, sparse: bool = False, **kwargs):
         super().__init__(**kwargs)
         self._sparse = bool(sparse)
-        self._target = make_schedule(target, **schedule) if self.follows_target else None
-        if self._target is not None and self.worlds is not None:
-            self._target = self._target.batch(self.worlds)
+        self._target = None
         self._target_random = self.random if self.worlds is None else self.randoms
 
     @property
@@ -93,3 +79,27 @@ class GoalTask(QubeTask):
         if self._target is not None:
             values.append(self._target.value)
         return values
+
+
+class FollowsTarget(GoalTask):
+    """A goal task whose arm follows a moving target, chosen by the schedule keywords.
+
+    Put first among a follow task's bases (`class SwingupFollow(FollowsTarget, Swingup)`).
+
+    Args:
+        target, target_amplitude, target_hold_time, target_frequency, target_angle:
+            the target schedule (`qube_suite.tasks.follow.make_schedule`).
+        **kwargs: see `GoalTask`.
+    """
+
+    follows_target = True
+
+    def __init__(self, target="jump", target_amplitude: float | None = None,
+                 target_hold_time: float | None = None, target_frequency: float | None = None,
+                 target_angle: float | None = None, **kwargs):
+        super().__init__(**kwargs)
+        self._target = make_schedule(target, target_amplitude=target_amplitude,
+                                     target_hold_time=target_hold_time, target_frequency=target_frequency,
+                                     target_angle=target_angle)
+        if self.worlds is not None:
+            self._target = self._target.batch(self.worlds)

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from qube_suite.tasks.goal import GoalTask
+from qube_suite.tasks.goal import FollowsTarget, GoalTask
 from qube_suite.tasks.registry import register
 
 START_NOISE = 0.05
@@ -56,7 +56,7 @@ class Swingup(GoalTask):
         return physics.pendulum_angle()
 
 
-class SwingupFollow(Swingup):
+class SwingupFollow(FollowsTarget, Swingup):
     """Swing up and balance while the arm follows a moving target.
 
     As `Swingup`, with the arm's goal theta_target following a schedule (`target`):
@@ -90,8 +90,6 @@ class SwingupFollow(Swingup):
     v0: first release; the target schedule keywords were added later in v0, with
     "jump" (the first release's targets, draw for draw) the default.
     """
-
-    follows_target = True
 
 
 @register("benchmarking")

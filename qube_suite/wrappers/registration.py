@@ -2,36 +2,58 @@
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import gymnasium
 
-from qube_suite import suite
+from qube_suite import devices, suite
 from qube_suite.arguments import check_keywords, keywords_of
 from qube_suite.wrappers.gym_env import QubeEnv
 from qube_suite.wrappers.vector_env import make_vector_env
 
 NAMESPACE = "QubeSuite"
 
-
-DOMAIN_SUFFIXES = {"qube": "", "qube_hardware": "Hardware"}
-"""Domain name -> suffix of its Gymnasium ids."""
+HARDWARE_SUFFIX = "Hardware"
+"""Suffix of the ids on a device's hardware domain."""
 
 
 def gymnasium_id(task_name: str, domain_name: str = "qube") -> str:
-    """`QubeSuite/SwingupSparse-v0` for ("swingup_sparse", "qube"); `...Hardware-v0` on hardware."""
-    if domain_name not in DOMAIN_SUFFIXES:
-        raise ValueError(f"unknown domain {domain_name!r}; valid domains: {', '.join(DOMAIN_SUFFIXES)}")
+    """`QubeSuite/SwingupSparse-v0` for ("swingup_sparse", "qube"); `...Hardware-v0` on hardware; a device's
+    `gymnasium_prefix` before the task's name."""
+    domain = devices.domain(domain_name)
     task = "".join(part.capitalize() for part in task_name.split("_"))
-    return f"{NAMESPACE}/{task}{DOMAIN_SUFFIXES[domain_name]}-v0"
+    suffix = HARDWARE_SUFFIX if domain.hardware else ""
+    return f"{NAMESPACE}/{domain.device.gymnasium_prefix}{task}{suffix}-v0"
 
 
-GYMNASIUM_IDS: dict[str, str] = {gymnasium_id(task): task for task in suite.TASKS_BY_DOMAIN["qube"]}
-"""Gymnasium id -> suite task name, simulated domain."""
+class _GymnasiumIds(Mapping):
+    """Gymnasium id -> suite task name, of every device's simulated (or hardware) domain, read from the
+    registries at every lookup: a task registered after import is there."""
 
-HARDWARE_GYMNASIUM_IDS: dict[str, str] = {
-    gymnasium_id(task, "qube_hardware"): task for task in suite.TASKS_BY_DOMAIN["qube_hardware"]}
-"""Gymnasium id -> suite task name, hardware domain."""
+    def __init__(self, hardware: bool):
+        self._hardware = hardware
+
+    def _ids(self) -> dict[str, str]:
+        return {gymnasium_id(task, name): task for name, domain in devices.domains().items()
+                if domain.hardware == self._hardware for task in domain.task_names()}
+
+    def __getitem__(self, env_id: str) -> str:
+        return self._ids()[env_id]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._ids())
+
+    def __len__(self) -> int:
+        return len(self._ids())
+
+
+GYMNASIUM_IDS: Mapping[str, str] = _GymnasiumIds(hardware=False)
+"""Gymnasium id -> suite task name, simulated domains."""
+
+HARDWARE_GYMNASIUM_IDS: Mapping[str, str] = _GymnasiumIds(hardware=True)
+"""Gymnasium id -> suite task name, hardware domains."""
 
 
 def make_env(task: str, domain: str = "qube", render_mode: str | None = None, randomization: Any = None,
@@ -43,7 +65,8 @@ def make_env(task: str, domain: str = "qube", render_mode: str | None = None, ra
     (`voltage_limit`, `observation`, `random`); `domain_kwargs` as in `suite.load`. An
     unknown keyword is a TypeError (and a ValueError) listing the valid ones.
     """
-    valid = keywords_of(make_env, skip=("task", "domain")) + suite.ENVIRONMENT_KWARGS + suite.TASK_KWARGS
+    valid = keywords_of(make_env, skip=("task", "domain")) + suite.ENVIRONMENT_KWARGS + suite.task_keywords(
+        domain, task)
     check_keywords(kwargs, valid, f"keyword arguments for {gymnasium_id(task, domain)}")
     environment_kwargs = {key: kwargs.pop(key) for key in suite.ENVIRONMENT_KWARGS if key in kwargs}
     environment = suite.load(domain, task, task_kwargs=kwargs, environment_kwargs=environment_kwargs,
@@ -59,13 +82,27 @@ disable_env_checker=False)` still adds the checker."""
 
 
 def register_environments() -> None:
-    """Register every id of `GYMNASIUM_IDS` (for `gymnasium.make` and `gymnasium.make_vec`) and of
-    `HARDWARE_GYMNASIUM_IDS` (`gymnasium.make`), once."""
-    for env_id, task in GYMNASIUM_IDS.items():
-        if env_id not in gymnasium.registry:
-            gymnasium.register(env_id, entry_point=make_env, vector_entry_point=make_vector_env,
-                               kwargs={"task": task}, **CHECKS_BUILT_IN)
-    for env_id, task in HARDWARE_GYMNASIUM_IDS.items():
-        if env_id not in gymnasium.registry:
-            gymnasium.register(env_id, entry_point=make_env, nondeterministic=True,
-                               kwargs={"task": task, "domain": "qube_hardware"}, **CHECKS_BUILT_IN)
+    """Register every task of every device under its ids, now and whenever a task is registered
+    later: on the simulated domain for `gymnasium.make` and `gymnasium.make_vec`, on the hardware
+    domain for `gymnasium.make`. Calling it again does nothing."""
+    for device in devices.devices().values():
+        if device.name not in _SUBSCRIBED:
+            _SUBSCRIBED.add(device.name)
+            device.task_suite().subscribe(functools.partial(_register_task, device))
+
+
+_SUBSCRIBED: set[str] = set()
+"""Devices whose task registries `register_environments` listens to."""
+
+
+def _register_task(device: devices.Device, task: str) -> None:
+    """Register `task` of `device` on its two domains (an id already taken is left as it is)."""
+    simulation, hardware = device.domain_names
+    env_id = gymnasium_id(task, simulation)
+    if env_id not in gymnasium.registry:
+        gymnasium.register(env_id, entry_point=make_env, vector_entry_point=make_vector_env,
+                           kwargs={"task": task, "domain": simulation}, **CHECKS_BUILT_IN)
+    env_id = gymnasium_id(task, hardware)
+    if env_id not in gymnasium.registry:
+        gymnasium.register(env_id, entry_point=make_env, nondeterministic=True,
+                           kwargs={"task": task, "domain": hardware}, **CHECKS_BUILT_IN)

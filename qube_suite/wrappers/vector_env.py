@@ -107,7 +107,8 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
             raise ValueError("the vector environment does not render; make a single environment to watch one")
         if not (isinstance(num_envs, int) and not isinstance(num_envs, bool) and num_envs >= 1):
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
-        check_keywords(task_kwargs, keywords_of(QubeVectorEnv, skip=("task", "num_envs")) + suite.TASK_KWARGS,
+        check_keywords(task_kwargs, keywords_of(QubeVectorEnv, skip=("task", "num_envs"))
+                       + suite.task_keywords("qube", task),
                        f"keyword arguments for the vector environment of {task!r}")
         modes = [mode.value for mode in AutoresetMode]
         if autoreset_mode not in [*AutoresetMode, *modes]:
@@ -272,6 +273,9 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
         return observations, info
 
 
-def make_vector_env(task: str, num_envs: int = 1, **kwargs) -> QubeVectorEnv:
-    """Vector entry point of the registered ids (`gymnasium.make_vec`)."""
+def make_vector_env(task: str, num_envs: int = 1, domain: str = "qube", **kwargs) -> QubeVectorEnv:
+    """Vector entry point of the registered ids (`gymnasium.make_vec`): a batch of simulated Qube
+    pendulums (domain "qube", the one device with a batch so far)."""
+    if domain != "qube":
+        raise ValueError(f"the vector environment simulates Qube pendulums (domain 'qube'), not {domain!r}")
     return QubeVectorEnv(task, num_envs, **kwargs)
