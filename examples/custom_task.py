@@ -1,11 +1,14 @@
-"""A new task on the simulated Qube: turn the arm to a goal angle, the pendulum hanging still.
+"""A new task on the Qube, in one file: turn the arm to a goal angle, the pendulum hanging still.
 
 Subclass `QubeTask` (the voltage action, the observation and the arm's safe set
-come with it), say where episodes start and what earns reward, and run it in an
-`Environment` on the Qube domain: it then has the dm_env and Gymnasium APIs, the
-LED, randomization and rendering like the suite's own tasks. Its formulas use numpy
-(`np.exp`, not `math.exp`), so it is batch-safe: registered with
-`qube_suite.tasks.register`, it would also run in the vector environment.
+come with it), say where episodes start and what earns reward, and register a
+factory for it with `qube_suite.tasks.register`: it then loads by name like the
+suite's own tasks, on both domains (`suite.load("qube", "arm_to_angle")`,
+`"qube_hardware"`), under its Gymnasium ids (`QubeSuite/ArmToAngle-v0`, also with
+`gymnasium.make_vec`), in `evaluate` and `train`, with the LED, randomization and
+rendering. Its own keyword (`goal`) goes through `task_kwargs` and Gymnasium's
+keywords. Its formulas use numpy (`np.exp`, not `math.exp`), so it is batch-safe,
+which registering checks.
 
     python examples/custom_task.py [--goal 45] [--short]
 """
@@ -15,13 +18,13 @@ from __future__ import annotations
 import argparse
 import math
 
+import gymnasium
 import numpy as np
 
-from qube_suite import to_gymnasium
+import qube_suite  # noqa: F401  (registers the suite's Gymnasium ids)
+from qube_suite import suite
 from qube_suite.angles import wrap_angle
-from qube_suite.domains import qube
-from qube_suite.environment import Environment
-from qube_suite.tasks import QubeTask, check_batch_safety
+from qube_suite.tasks import QubeTask, register
 
 ARM_TOLERANCE = 0.1
 """Width (rad) of the reward's bell around the arm's goal."""
@@ -67,6 +70,12 @@ class ArmToAngle(QubeTask):
         return arm * (1.0 - swing)
 
 
+@register("custom")
+def arm_to_angle(**kwargs) -> ArmToAngle:
+    """The task's factory: its name is the task's, its keywords are `ArmToAngle`'s."""
+    return ArmToAngle(**kwargs)
+
+
 def arm_controller(goal: float, observation) -> float:
     """A PD controller on the arm (V): enough for this task, blind to the pendulum."""
     theta, _, dtheta, _ = observation["state"]
@@ -81,10 +90,9 @@ def main(argv: list[str] | None = None) -> None:
     goal = math.radians(args.goal)
     time_limit = 1.0 if args.short else 4.0
 
-    check_batch_safety(ArmToAngle)  # what registering the task would check; raises if not batch-safe
-
-    # dm_env: the Qube domain's physics and the task in an Environment.
-    env = Environment(qube.make_physics(), ArmToAngle(goal=goal, random=0), time_limit=time_limit)
+    # dm_env, by name, with the task's own keyword.
+    env = suite.load("qube", "arm_to_angle", task_kwargs={"goal": goal, "random": 0},
+                     environment_kwargs={"time_limit": time_limit})
     timestep, episode_return = env.reset(), 0.0
     while not timestep.last():
         timestep = env.step(np.array([arm_controller(goal, timestep.observation)]))
@@ -92,9 +100,10 @@ def main(argv: list[str] | None = None) -> None:
     theta = timestep.observation["state"][0]
     print(f"arm at {math.degrees(theta):.1f} deg (goal {args.goal:g}), return {episode_return:.1f} "
           f"of {env.step_count} steps, LED {np.round(env.physics.led(), 2).tolist()}")
+    env.close()
 
-    # Gymnasium: the same task through the suite's wrapper.
-    gym_env = to_gymnasium(Environment(qube.make_physics(), ArmToAngle(goal=goal), time_limit=time_limit))
+    # Gymnasium: the id registering gave it.
+    gym_env = gymnasium.make("QubeSuite/ArmToAngle-v0", goal=goal, time_limit=time_limit)
     observation, info = gym_env.reset(seed=0)
     observation, reward, terminated, truncated, info = gym_env.step(gym_env.action_space.sample())
     print(f"Gymnasium: observation {observation.shape}, first reward {reward:.3f}")

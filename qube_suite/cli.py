@@ -15,6 +15,7 @@ import sys
 import time
 from typing import Any
 
+from qube_suite import devices
 from qube_suite.progress import Progress
 
 DEMO_PLOT = "qube_demo.png"
@@ -516,7 +517,7 @@ def _add_train(commands) -> None:
     training.add_argument("--seed", type=int, default=None, help="seed (default: 0)")
     training.add_argument("--randomization", default=None,
                           help="preset (mild, moderate, sim2real, wide) or YAML file (default: none)")
-    training.add_argument("--domain", choices=("qube", "qube_hardware"), default=None,
+    training.add_argument("--domain", choices=tuple(devices.domains()), default=None,
                           help="domain to train on (default: qube)")
     training.add_argument("--num-envs", type=_positive_int, default=None,
                           help="environments stepped together (default: 64 for ppo, 4 for sac)")

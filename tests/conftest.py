@@ -38,3 +38,21 @@ def physics():
     from qube_suite.domains import qube
 
     return qube.make_physics()
+
+
+@pytest.fixture
+def forget_new_tasks():
+    """Tasks a test registers (and their Gymnasium ids) are forgotten when it ends, so that the
+    tests after it see the suite's own tasks only."""
+    import gymnasium
+
+    from qube_suite.tasks import SUITE
+
+    tasks, ids = set(SUITE), set(gymnasium.registry)
+    yield
+    for name in set(SUITE) - tasks:
+        SUITE._tasks.pop(name)
+        for tagged in SUITE._tags.values():
+            tagged.pop(name, None)
+    for env_id in set(gymnasium.registry) - ids:
+        gymnasium.registry.pop(env_id)

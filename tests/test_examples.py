@@ -15,14 +15,14 @@ def load(name):
     return module
 
 
-def test_custom_task_reaches_its_goal(capsys):
+def test_custom_task_reaches_its_goal(capsys, forget_new_tasks):
     load("custom_task").main(["--short", "--goal", "-30"])
     out = capsys.readouterr().out
     arm = float(out.split("arm at ")[1].split()[0])
     assert abs(arm + 30) < 3 and "of 250 steps" in out and "Gymnasium: observation (4,)" in out
 
 
-def test_custom_task_checks_its_argument():
+def test_custom_task_checks_its_argument(forget_new_tasks):
     with pytest.raises(ValueError, match="within"):
         load("custom_task").ArmToAngle(goal=2.0)
 
@@ -46,27 +46,21 @@ def test_sb3_example_trains_or_says_how_to_install(capsys, tmp_path):
         assert (tmp_path / "ppo.png").stat().st_size > 10000
 
 
-def test_custom_task_is_batch_safe():
+def test_custom_task_is_batch_safe(forget_new_tasks):
     from qube_suite.tasks import check_batch_safety
 
     check_batch_safety(load("custom_task").ArmToAngle)
 
 
-def test_custom_task_runs_in_the_vector_env_like_single_envs(monkeypatch):
+def test_custom_task_runs_in_the_vector_env_like_single_envs(forget_new_tasks):
     import math
 
+    import gymnasium
     import numpy as np
 
-    from qube_suite import to_gymnasium
-    from qube_suite.domains import qube
-    from qube_suite.environment import Environment
-    from qube_suite.tasks import SUITE
-    from qube_suite.wrappers import QubeVectorEnv
-
-    example = load("custom_task")
-    monkeypatch.setitem(SUITE._tasks, "arm_to_angle", example.ArmToAngle)
-    vector = QubeVectorEnv("arm_to_angle", 2)
-    singles = [to_gymnasium(Environment(qube.make_physics(), example.ArmToAngle())) for _ in range(2)]
+    load("custom_task")  # registers the task and its ids
+    vector = gymnasium.make_vec("QubeSuite/ArmToAngle-v0", num_envs=2, goal=0.3)
+    singles = [gymnasium.make("QubeSuite/ArmToAngle-v0", goal=0.3) for _ in range(2)]
     observations, _ = vector.reset(seed=5)
     for world, env in enumerate(singles):
         np.testing.assert_array_equal(observations[world], env.reset(seed=5 + world)[0])
