@@ -122,3 +122,17 @@ def test_a_task_registered_after_import_is_evaluated_and_trained(registered):
 
     with pytest.raises(ValueError, match="steps must be a positive integer"):  # past the task's check
         train(registered, steps=0)
+
+
+@pytest.mark.slow
+def test_a_task_registered_after_import_trains_and_its_policy_is_evaluated(registered, tmp_path):
+    pytest.importorskip("stable_baselines3")
+    from qube_suite.training import train
+
+    result = train(registered, steps=512, num_envs=2, evaluations=1, eval_episodes=1, checkpoints=1,
+                   progress=False, out=tmp_path, task_kwargs={"goal": 0.3},
+                   hyperparameters={"n_steps": 128, "batch_size": 64})
+    assert result.steps == 512 and result.policy.exists()
+    scored = qube_suite.evaluate(str(result.policy), task=registered, episodes=1, task_kwargs={"goal": 0.3},
+                                 environment_kwargs={"time_limit": 1.0})
+    assert scored.task == registered and len(scored.returns) == 1
