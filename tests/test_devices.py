@@ -6,8 +6,8 @@ import gymnasium
 import pytest
 
 from qube_suite import cli, devices, suite
-from qube_suite.wrappers import GYMNASIUM_IDS, HARDWARE_GYMNASIUM_IDS, gymnasium_id
-from qube_suite.wrappers.registration import register_environments
+from qube_suite.tasks import SUITE
+from qube_suite.wrappers import GYMNASIUM_IDS, HARDWARE_GYMNASIUM_IDS, gymnasium_id, registration
 
 
 def test_the_qube_pendulum_is_found_by_discovery_with_its_two_domains():
@@ -27,6 +27,8 @@ def second_device(monkeypatch):
     qube = devices.devices()["qube"]
     twin = dataclasses.replace(qube, name="twin", gymnasium_prefix="Twin")
     monkeypatch.setattr(devices, "devices", lambda: {"qube": qube, "twin": twin})
+    monkeypatch.setattr(SUITE, "_listeners", list(SUITE._listeners))  # the twin's listener goes with it
+    monkeypatch.setattr(registration, "_SUBSCRIBED", set(registration._SUBSCRIBED))
     yield twin
     for env_id in [env_id for env_id in gymnasium.registry if env_id.startswith("QubeSuite/Twin")]:
         gymnasium.registry.pop(env_id)
@@ -41,7 +43,7 @@ def test_a_device_in_the_registry_is_loaded_listed_and_registered_everywhere(sec
     assert gymnasium_id("balance_sparse", "twin_hardware") == "QubeSuite/TwinBalanceSparseHardware-v0"
     assert GYMNASIUM_IDS["QubeSuite/TwinSwingup-v0"] == "swingup"
     assert HARDWARE_GYMNASIUM_IDS["QubeSuite/TwinRotorHardware-v0"] == "rotor"
-    register_environments()
+    registration.register_environments()
     assert gymnasium.spec("QubeSuite/TwinDampenHardware-v0").kwargs == {"task": "dampen",
                                                                         "domain": "twin_hardware"}
     arguments = cli.build_parser().parse_args(["train", "--task", "swingup", "--domain", "twin_hardware"])
