@@ -155,8 +155,8 @@ def _columns(name: str) -> dict[str, np.ndarray]:
 
 
 def _sample_time(name: str, time: np.ndarray) -> float:
-    """The recording's constant sample period (s), the median interval. ValueError if time does not
-    increase or an interval is further than MAX_JITTER from it."""
+    """The recording's constant sample period (s), the mean interval (jitter averages out). ValueError
+    if time does not increase or an interval is further than MAX_JITTER from the median one."""
     if len(time) < 3:
         raise ValueError(f"{name} is too short: {len(time)} samples")
     steps = np.diff(time)
@@ -170,7 +170,7 @@ def _sample_time(name: str, time: np.ndarray) -> float:
         raise ValueError(f"{name}: the sample period is not constant: {steps[uneven[0]]:g} s between "
                          f"data rows {uneven[0] + 1} and {uneven[0] + 2} against {period:g} s typically "
                          "(a gap or a change of rate)")
-    return period
+    return float((time[-1] - time[0]) / (len(time) - 1))
 
 
 def _check_saturation(name: str, voltage: np.ndarray, commanded: np.ndarray | None) -> None:
@@ -183,3 +183,27 @@ def _check_saturation(name: str, voltage: np.ndarray, commanded: np.ndarray | No
     if np.mean(clipped) > SATURATED_FRACTION:
         raise ValueError(f"{name}: the voltage is saturated in {100 * np.mean(clipped):.0f} % of the "
                          "samples; a recording at its voltage limit most of the time cannot calibrate")
+
+
+def export(source: str | os.PathLike, destination: str | os.PathLike, episode: int = 0) -> str:
+    """Write episode `episode` of the suite's recording at `source` (JSON lines) to `destination`
+    in this module's CSV format; return its path. Raises ValueError if there is no such episode."""
+    from qube_suite.recording import load_recording
+
+    recording = load_recording(source)
+    if not 0 <= episode < len(recording.episodes):
+        raise ValueError(f"{os.fspath(source)} has {len(recording.episodes)} episode(s); "
+                         f"no episode {episode}")
+    data = recording.episodes[episode]
+    columns = {"time": data["time"], "voltage": data["applied_voltage"], "arm_angle": data["theta"],
+               "pendulum_angle": data["alpha"], "voltage_commanded": data["voltage"],
+               "arm_velocity": data["dtheta"], "pendulum_velocity": data["dalpha"]}
+    if "raw_current" in data.data:
+        from qube_suite.hardware import conventions
+
+        columns["motor_current"] = conventions.ARM_SIGN * data["raw_current"]
+    names = list(columns)
+    table = np.column_stack([columns[name] for name in names])
+    destination = os.fspath(destination)
+    np.savetxt(destination, table, delimiter=",", header=",".join(names), comments="", fmt="%.9g")
+    return destination
