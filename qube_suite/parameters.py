@@ -115,6 +115,36 @@ def _check_nonpositive(name: str, value: float) -> None:
         raise ValueError(f"parameter {name!r} must be {'>= 0' if minimum_is_zero else '> 0'}, got {value}")
 
 
+CALIBRATED_EFFECTS = ("latency_seconds", "voltage_deadzone", "cable_rest_angle", "pendulum_encoder_offset")
+"""What a calibration identifies beyond the parameters and a simulation reproduces (`effects_of`)."""
+
+
+def effects_of(source: Mapping[str, float] | str | os.PathLike | Any | None) -> dict[str, float]:
+    """The calibrated effects of `source` (as for `values_of`) by the names of CALIBRATED_EFFECTS,
+    those it identified only: the latency (s, a fraction of a sample allowed) and the voltage's dead
+    zone (V) of its `actuation`, the cable's rest angle (rad, minus its `arm_encoder_offset`: the
+    fit cannot tell a cable at rest off the encoder's zero from an encoder zeroed off the cable's
+    rest, and the simulation takes the former) and the pendulum encoder's offset (rad; true angle =
+    encoder angle + offset). A mapping of parameters has none."""
+    if source is None or isinstance(source, Mapping):
+        return {}
+    if isinstance(source, (str, os.PathLike)):
+        import yaml
+
+        with open(source, encoding="utf-8") as file:
+            content = yaml.safe_load(file) or {}
+        actuation, offsets = content.get("actuation") or {}, content.get("offsets") or {}
+    else:
+        actuation, offsets = getattr(source, "actuation", {}) or {}, getattr(source, "offsets", {}) or {}
+    effects = {name: float(actuation[name]) for name in ("latency_seconds", "voltage_deadzone")
+               if actuation.get(name)}
+    if offsets.get("arm_encoder_offset") is not None and "latency_seconds" in actuation:
+        effects["cable_rest_angle"] = -float(offsets["arm_encoder_offset"])
+    if offsets.get("pendulum_encoder_offset"):
+        effects["pendulum_encoder_offset"] = float(offsets["pendulum_encoder_offset"])
+    return effects
+
+
 def values_of(source: Mapping[str, float] | str | os.PathLike | Any | None) -> dict[str, float]:
     """Parameter overrides by long name from `source`: a mapping, the path of a calibration file
     (YAML with a `parameters` mapping, `qube_suite.calibration`), or an object with a `parameters`

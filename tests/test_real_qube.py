@@ -142,3 +142,28 @@ def test_the_suites_recordings_export_to_the_format(tmp_path):
     assert main(["recording", "export", str(source), "--out", str(out)]) == 0
     m = recordings.read(out)
     assert m.sample_time == pytest.approx(1 / 250.0) and len(m) > 700
+
+
+def test_a_calibration_file_gives_the_simulation_its_latency_dead_zone_and_offsets(tmp_path):
+    from qube_suite import parameters
+    from qube_suite.calibration.calibration_file import Calibration
+
+    found = Calibration(parameters=parameters.resolve({"cable_stiffness": 2e-3}), intervals={}, metadata={},
+                        offsets={"arm_encoder_offset": -0.3, "pendulum_encoder_offset": 0.01},
+                        actuation={"latency_seconds": 0.006, "voltage_deadzone": 0.2})
+    path = found.save(tmp_path / "mine.yaml")
+    physics = qube.make_physics(250.0, path)
+    physics.reset_to([0.0, np.pi, 0.0, 0.0])
+    assert physics.pendulum_angle() == pytest.approx(np.pi - 0.01)
+    applied = []
+    for volts in (1.0, 1.0, 1.0, 0.1, 0.1, 0.1):
+        physics.set_voltage(volts)
+        applied.append(physics.applied_voltage())
+        physics.step(1)
+    # 1.5 periods late: nothing, half of the first command, then all of it; 0.1 V lies in the dead zone
+    np.testing.assert_allclose(applied, [0.0, 0.5 * 1.0 - 0.2, 0.8, 0.8, 0.55 - 0.2, 0.0], atol=1e-12)
+    physics.reset_to([0.0, np.pi, 0.0, 0.0])
+    for _ in range(2000):
+        physics.set_voltage(0.0)
+        physics.step(1)
+    assert physics.true_state()[0] > 0.1  # the cable pulls the arm towards its rest angle, 0.3 rad

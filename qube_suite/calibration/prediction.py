@@ -55,7 +55,8 @@ class Predictions:
 
 def predict(measurements: Measurements, parameters: Mapping[str, float], samples: np.ndarray,
             latency: float = 0, offsets: tuple[float, float] = (0.0, 0.0), horizon: float = HORIZON,
-            voltage_deadzone: float = 0.0, cable_rest_angle: float = 0.0) -> Predictions:
+            voltage_deadzone: float = 0.0, cable_rest_angle: float = 0.0,
+            smoothed_start: bool = False) -> Predictions:
     """0.5 s-ahead rollouts of the simulated Qube with `parameters` (long names) from starts every
     `START_SPACING` within the sample indices `samples` (whose windows lie within them too).
 
@@ -65,7 +66,10 @@ def predict(measurements: Measurements, parameters: Mapping[str, float], samples
     angle after its start. `latency`: samples between a recorded voltage and its action (a fraction
     mixes neighbouring samples, `fit.delayed_voltage`); `offsets`: the encoders' offsets (rad), added
     to the recorded angles; `horizon`: how far ahead (s); `voltage_deadzone` (V) and
-    `cable_rest_angle` (rad): the effects of `qube_suite.effects` the simulation adds.
+    `cable_rest_angle` (rad): the effects the simulation adds (`domains.qube.CalibratedActuation`
+    and the cable's rest angle). `smoothed_start`: start instead from the zero-phase filter's angles
+    and speeds at the start itself (which see half its window, 5 samples, past the start): the
+    metric of `../shared/real_qube/README.md`, independent of the model.
     """
     from qube_suite.calibration.fit import delayed_voltage
 
@@ -79,6 +83,8 @@ def predict(measurements: Measurements, parameters: Mapping[str, float], samples
     angles = np.stack([measurements.theta + offsets[0], measurements.alpha + offsets[1]], axis=-1)
     theta, dtheta = measurements.derivatives(measurements.theta)
     alpha, dalpha = measurements.derivatives(measurements.alpha)
+    if smoothed_start:
+        past = 0
     first = starts - past
     guess = np.stack([theta[first] + offsets[0], alpha[first] + offsets[1], dtheta[first], dalpha[first]],
                      axis=-1)
@@ -88,7 +94,8 @@ def predict(measurements: Measurements, parameters: Mapping[str, float], samples
     voltages = np.stack([acting[j:j + total] for j in first])
     recorded = np.stack([angles[j:j + total + 1] for j in first])
     with _Simulator(parameters, 1.0 / h, cable_rest_angle) as simulator:
-        state = simulator.fit_initial_state(guess, voltages[:, :past], recorded[:, :past + 1])
+        state = guess if smoothed_start else simulator.fit_initial_state(guess, voltages[:, :past],
+                                                                          recorded[:, :past + 1])
         predicted = simulator.rollout(state, voltages)[:, past:]
     return Predictions(starts=starts, time=np.arange(steps + 1) * h, predicted=predicted,
                        measured=recorded[:, past:])
