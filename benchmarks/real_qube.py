@@ -16,6 +16,10 @@ estimated on the 0.1 s before each start, recorded voltages replayed; both angle
 * a figure of recorded against predicted angles (`--figure`), and the wall time.
 
     python benchmarks/real_qube.py [--data DIR] [--out FILE.json] [--figure FILE.png]
+    python benchmarks/real_qube.py --save qube_suite/assets/real_qube_servo2.yaml   # only that
+
+`--save` writes the calibration on all ten chirps, as shipped in the package
+(`qube_suite.parameters.REAL_QUBE_SERVO2`), and stops.
 """
 
 from __future__ import annotations
@@ -71,7 +75,11 @@ def main() -> None:
     parser.add_argument("--data", default=DEFAULT_DATA)
     parser.add_argument("--out", default=None, help="write the results as JSON here")
     parser.add_argument("--figure", default=None, help="write recorded against predicted angles here")
+    parser.add_argument("--save", default=None, help="write the calibration on all chirps here and stop")
     args = parser.parse_args()
+    if args.save:
+        save(sorted(glob.glob(os.path.join(args.data, "qs2_chirp_*.csv"))), args.save)
+        return
     started = time.perf_counter()
     chirps = sorted(glob.glob(os.path.join(args.data, "qs2_chirp_*.csv")))
     swings = {hz: sorted(glob.glob(os.path.join(args.data, f"qs2_swingup_{hz}hz_*.csv")))
@@ -135,6 +143,16 @@ def main() -> None:
             json.dump(results, file, indent=1)
     if args.figure:
         figure(full, read[chirps[-1]], read[swings[250][0]], args.figure)
+
+
+def save(chirps: list[str], path: str) -> None:
+    """Calibrate on `chirps` and save the result at `path`, its source named rather than its paths."""
+    c = calibration.calibrate_recordings(chirps)
+    c.metadata.update(identifier="TU Darmstadt, 2021", date="2021-04-14", recording=(
+        "10 voltage chirps qs2_chirp_{pos,neg}_{0..4}.csv, converted from SimuRLacra "
+        "(famura/SimuRLacra, Pyrado/data/perma/evaluation, BSD-3-Clause)"))
+    c.save(path)
+    print(f"calibration on {len(chirps)} chirps written to {path}")
 
 
 def figure(c: calibration.Calibration, chirp, swing, path: str) -> None:

@@ -70,6 +70,12 @@ PARAMETERS: types.MappingProxyType[str, Parameter] = types.MappingProxyType({p.n
 NOMINAL: types.MappingProxyType[str, float] = types.MappingProxyType({p.name: p.nominal for p in _TABLE})
 """Nominal value of every parameter by long name."""
 
+REAL_QUBE_SERVO2 = os.path.join(os.path.dirname(os.path.abspath(__file__)), "assets", "real_qube_servo2.yaml")
+"""A calibration of a real Qube-Servo 2 (TU Darmstadt's, from ten voltage chirps it recorded;
+`benchmarks/real_qube.py --save`): `domain_kwargs={"parameters": REAL_QUBE_SERVO2}` simulates it,
+its latency, dead zone, cable and encoder offset included. The nominal values above stay the
+defaults: the shipped policies and tuned controllers were made for them (docs/calibration.md)."""
+
 PENDULUM_ROD_RADIUS = 0.0045
 """Radius of the pendulum rod (m); gives its small inertia about its own axis."""
 

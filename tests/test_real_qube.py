@@ -167,3 +167,16 @@ def test_a_calibration_file_gives_the_simulation_its_latency_dead_zone_and_offse
         physics.set_voltage(0.0)
         physics.step(1)
     assert physics.true_state()[0] > 0.1  # the cable pulls the arm towards its rest angle, 0.3 rad
+
+
+def test_the_shipped_real_qube_is_a_calibration_the_suite_simulates():
+    from qube_suite import parameters, suite
+
+    shipped = calibration.load(parameters.REAL_QUBE_SERVO2)
+    assert shipped.parameters["rotor_inertia"] > 5 * parameters.NOMINAL["rotor_inertia"]
+    environment = suite.load("qube", "swingup", domain_kwargs={"parameters": parameters.REAL_QUBE_SERVO2})
+    physics = environment.physics
+    assert physics.parameters["pendulum_length"] == shipped.parameters["pendulum_length"]
+    physics.set_voltage(1.0)
+    assert physics.applied_voltage() == 0.0  # 1.5 periods late
+    environment.close()
