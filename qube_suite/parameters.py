@@ -144,7 +144,7 @@ def effects_of(source: Mapping[str, float] | str | os.PathLike | Any | None) -> 
         actuation, offsets = getattr(source, "actuation", {}) or {}, getattr(source, "offsets", {}) or {}
     effects = {name: float(actuation[name]) for name in ("latency_seconds", "voltage_deadzone")
                if actuation.get(name)}
-    if offsets.get("arm_encoder_offset") is not None and "latency_seconds" in actuation:
+    if offsets.get("arm_encoder_offset") is not None:
         effects["cable_rest_angle"] = -float(offsets["arm_encoder_offset"])
     if offsets.get("pendulum_encoder_offset"):
         effects["pendulum_encoder_offset"] = float(offsets["pendulum_encoder_offset"])

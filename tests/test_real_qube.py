@@ -180,3 +180,13 @@ def test_the_shipped_real_qube_is_a_calibration_the_suite_simulates():
     physics.set_voltage(1.0)
     assert physics.applied_voltage() == 0.0  # 1.5 periods late
     environment.close()
+
+
+def test_effects_of_a_calibration_without_actuation_are_its_offsets():
+    from qube_suite import parameters
+    from qube_suite.calibration.calibration_file import Calibration
+
+    old = Calibration(parameters=parameters.resolve(), intervals={}, metadata={}, latency_steps=1,
+                      offsets={"arm_encoder_offset": 0.05, "pendulum_encoder_offset": -0.002})
+    assert parameters.effects_of(old) == {"cable_rest_angle": -0.05, "pendulum_encoder_offset": -0.002}
+    assert parameters.effects_of({"pendulum_mass": 0.03}) == {}

@@ -75,6 +75,7 @@ def calibrate_recording(path: str | os.PathLike, board_type: str | None = None) 
                                     (0.0, offsets["pendulum_encoder_offset"]))
     return Calibration(parameters=parameters, intervals={name: found[name] for name in names},
                        metadata=dict(m.metadata), offsets=offsets, latency_steps=result.latency,
+                       actuation={"latency_seconds": result.latency * m.sample_time},
                        prediction={"horizon": prediction.HORIZON, "nominal_rms": nominal.rms_at_horizon,
                                    "calibrated_rms": calibrated.rms_at_horizon})
 
