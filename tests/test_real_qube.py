@@ -190,3 +190,22 @@ def test_effects_of_a_calibration_without_actuation_are_its_offsets():
                       offsets={"arm_encoder_offset": 0.05, "pendulum_encoder_offset": -0.002})
     assert parameters.effects_of(old) == {"cable_rest_angle": -0.05, "pendulum_encoder_offset": -0.002}
     assert parameters.effects_of({"pendulum_mass": 0.03}) == {}
+
+
+def test_one_recording_with_current_is_fitted_with_it(tmp_path):
+    truth = {"motor_resistance": 9.2, "pendulum_mass": 0.026, "cable_stiffness": 1.5e-3}
+    rate = 250.0
+    t = np.arange(0.0, 8.0, 1.0 / rate)
+    voltage = 1.5 * np.sin(2 * np.pi * (6.0 - 0.35 * t) * t)
+    physics = qube.make_physics(rate, truth)
+    physics.reset_to([0.0, np.pi, 0.0, 0.0])
+    rows = []
+    for k, volts in enumerate(voltage):
+        theta, alpha = physics.true_state()[:2]
+        rows.append((t[k], volts, theta, alpha, physics.motor_current()))  # of the interval before
+        physics.set_voltage(float(volts))
+        physics.step(qube.substeps_per_control_period(rate))
+    path = write(tmp_path / "with_current.csv", rows, header=HEADER + ",motor_current")
+    found = calibration.calibrate_recordings([path])
+    assert found.parameters["motor_resistance"] == pytest.approx(9.2, rel=0.03)
+    assert found.parameters["pendulum_mass"] == pytest.approx(0.026, rel=0.05)

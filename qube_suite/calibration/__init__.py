@@ -59,7 +59,12 @@ def held_out(m: measurements.Measurements) -> np.ndarray:
 def calibrate_recording(path: str | os.PathLike, board_type: str | None = None) -> Calibration:
     """Calibrate from the experiment recorded at `path`; `board_type`: the board type it must come
     from (None: any). Raises ValueError naming the problem for a recording that cannot calibrate."""
-    m = measurements.load(path, board_type)
+    return _calibrate_with_current(measurements.load(path, board_type))
+
+
+def _calibrate_with_current(m: measurements.Measurements) -> Calibration:
+    """Calibrate from one recording with motor currents (`fit.fit`), holding out every
+    `HELD_OUT_EVERY`-th block to report predictions on."""
     test = held_out(m)
     result = fit.fit(m, np.flatnonzero(~test))
     found = intervals.intervals(result)
@@ -91,14 +96,17 @@ def calibrate_recordings(paths: Sequence[str | os.PathLike], device: str = "qube
     """Calibrate from one or several recordings of the same Qube in the CSV or `.npz` format of
     `recordings` (any logger, any constant sample period), all fitted at once.
 
-    A recording with a `motor_current` column is still fitted from its encoders and voltage (the
-    current-based fit needs the excitation experiment's recording, `calibrate_recording`).
-    `free`: the unknowns fitted (`fit.fit_voltage`; None: all). Raises ValueError (one line, naming
+    One recording with a `motor_current` column is fitted with its current (`fit.fit`, as the
+    excitation experiment: resistance and back-EMF separately, the rotor's inertia fixed); several
+    are fitted together from their encoders and voltages (`fit.fit_voltage`), current or not.
+    `free`: the unknowns of the voltage-only fit (None: all). Raises ValueError (one line, naming
     the file) for a recording that cannot calibrate; nothing is written here.
     """
     if not paths:
         raise ValueError("no recordings given")
     read = [recordings.read(path, device, conventions) for path in paths]
+    if len(read) == 1 and read[0].current is not None and free is None:
+        return _calibrate_with_current(read[0])
     periods = {round(m.sample_time, 9) for m in read}
     result = fit.fit_voltage(read, free=free)
     found = intervals.voltage_only_intervals(result)
