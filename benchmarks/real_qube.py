@@ -18,10 +18,13 @@ estimated on the 0.1 s before each start, recorded voltages replayed; both angle
     python benchmarks/real_qube.py [--data DIR] [--out FILE.json] [--figure FILE.png] [--smoothed-start]
     python benchmarks/real_qube.py --save qube_suite/assets/real_qube_servo2.yaml   # only that
 
-`--smoothed-start` starts each prediction from the zero-phase filter's state at its start (the
-metric of the data's README, which peeks 5 samples ahead) instead of a state fitted to the 0.1 s
-before it. `--save` writes the calibration on all ten chirps, as shipped in the package
-(`qube_suite.parameters.REAL_QUBE_SERVO2`), and stops.
+`--residual-structure` instead fits all ten chirps (latency 1.5 samples) and reports how much of
+the arm's momentum-balance residual candidate terms explain (least squares on their weak-form
+projections): a hardening cable (theta^3), Stribeck friction, a per-recording torque offset and
+a per-recording cable stiffness. `--smoothed-start` starts each prediction from the zero-phase
+filter's state at its start (the metric of the data's README, which peeks 5 samples ahead)
+instead of a state fitted to the 0.1 s before it. `--save` writes the calibration on all ten
+chirps, as shipped in the package (`qube_suite.parameters.REAL_QUBE_SERVO2`), and stops.
 """
 
 from __future__ import annotations
@@ -82,9 +85,13 @@ def main() -> None:
     parser.add_argument("--figure", default=None, help="write recorded against predicted angles here")
     parser.add_argument("--save", default=None, help="write the calibration on all chirps here and stop")
     parser.add_argument("--smoothed-start", action="store_true")
+    parser.add_argument("--residual-structure", action="store_true")
     args = parser.parse_args()
     global SMOOTHED_START
     SMOOTHED_START = args.smoothed_start
+    if args.residual_structure:
+        residual_structure(sorted(glob.glob(os.path.join(args.data, "qs2_chirp_*.csv"))))
+        return
     if args.save:
         save(sorted(glob.glob(os.path.join(args.data, "qs2_chirp_*.csv"))), args.save)
         return
@@ -151,6 +158,48 @@ def main() -> None:
             json.dump(results, file, indent=1)
     if args.figure:
         figure(full, read[chirps[-1]], read[swings[250][0]], args.figure)
+
+
+def residual_structure(chirps: list[str]) -> None:
+    """Print the share of the arm equation's residual that candidate terms explain (see the module)."""
+    from qube_suite.calibration import fit
+
+    read = [recordings.read(path) for path in chirps]
+    result = fit.fit_voltage(read, latency=1.5)
+    residuals, terms = [], []
+    for s, voltage in zip(result.signals, result.voltages, strict=True):
+        arm, _ = fit.voltage_equations(result.x, s, fit.delayed_voltage(voltage, result.latency))
+        starts, zero = s.starts[s.arm_sliding], np.zeros_like(s.theta)
+        residuals.append(arm)
+        terms.append({name: fit._balance(zero, torque, 0.0, starts, s.sample_time) for name, torque in (
+            ("one", np.ones_like(s.theta)), ("theta", s.theta), ("theta^3", s.theta**3),
+            ("stribeck", np.exp(-(s.dtheta / 0.3) ** 2) * np.sign(s.dtheta)))})
+    y = np.concatenate(residuals)
+
+    def explained(columns: list[np.ndarray]) -> float:
+        design = np.column_stack(columns)
+        coefficients, *_ = np.linalg.lstsq(design, -y, rcond=None)
+        return 1.0 - float(np.sqrt(np.mean((y + design @ coefficients) ** 2) / np.mean(y**2)))
+
+    def per_recording(name: str) -> list[np.ndarray]:
+        columns, start = [], 0
+        for part, term in zip(residuals, terms, strict=True):
+            column = np.zeros(len(y))
+            column[start:start + len(part)] = term[name]
+            columns.append(column)
+            start += len(part)
+        return columns
+
+    def shared(name: str) -> np.ndarray:
+        return np.concatenate([term[name] for term in terms])
+
+    print(f"arm residual RMS {np.sqrt(np.mean(y**2)):.3g} N m s; share of its RMS explained by")
+    for label, columns in (("a hardening cable, theta^3", [shared("theta^3")]),
+                           ("Stribeck friction, exp(-(v / 0.3 rad/s)^2) sign(v)", [shared("stribeck")]),
+                           ("a torque offset per recording", per_recording("one")),
+                           ("a torque offset and a cable stiffness per recording",
+                            per_recording("one") + per_recording("theta"))):
+        print(f"  {label}: {100 * explained(columns):.0f} %")
 
 
 def save(chirps: list[str], path: str) -> None:
