@@ -629,7 +629,7 @@ def _add_calibrate(commands) -> None:
                              "needs the motor current, which only a board measures)")
     source.add_argument("--recording", nargs="+", metavar="FILE",
                         help="fit recordings made earlier: one excitation experiment (JSON lines), or "
-                             "recordings from any logger (CSV or .npz with time, voltage, arm_angle, "
+                             "recordings from any logger (CSV, .npz or .mat with time, voltage, arm_angle, "
                              "pendulum_angle; see docs/calibration.md), fitted together")
     calibrate.add_argument("--device", choices=("qube_servo2", "qube_servo3"), default="qube_servo2",
                            help="with CSV/.npz recordings: the Qube they come from (default: qube_servo2)")

@@ -75,6 +75,11 @@ def test_conventions_and_npz_give_the_same_measurements(tmp_path):
     converted = recordings.read(npz, conventions=recordings.Conventions(
         degrees=True, pendulum_zero_hanging=True, arm_sign=-1))
     assert reference.sample_time == pytest.approx(0.004, rel=1e-3)
+    from scipy.io import savemat
+
+    savemat(tmp_path / "c.mat", {"time": rows[:, 0], "voltage": rows[:, 1], "arm_angle": rows[:, 2],
+                                 "pendulum_angle": rows[:, 3]})
+    np.testing.assert_allclose(recordings.read(tmp_path / "c.mat").theta, reference.theta, atol=1e-12)
     np.testing.assert_allclose(converted.theta, reference.theta, atol=1e-12)
     np.testing.assert_allclose(np.cos(converted.alpha), np.cos(reference.alpha), atol=1e-12)
 

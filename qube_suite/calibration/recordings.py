@@ -10,7 +10,10 @@ renamed, and of `qube-suite recording export`): one row per sample, a header lin
 
 and optionally `motor_current` (A), `arm_velocity`, `pendulum_velocity` (rad/s, ignored by the
 fit, which differentiates the angles without lag) and `voltage_commanded` (V, before the
-amplifier's clipping). Other columns are ignored. A `.npz` holds the same names as arrays.
+amplifier's clipping). Other columns are ignored. A `.npz`, or a MATLAB `.mat` of separate
+variables (`save('run.mat', 'time', 'voltage', 'arm_angle', 'pendulum_angle')`), holds the
+same names as arrays. (QUARC's To File blocks write one unnamed matrix: save its rows under
+these names first.)
 
 Recordings in other conventions are read with `Conventions`: angles in degrees, the pendulum's
 zero hanging rather than upright, either angle's sign reversed.
@@ -122,7 +125,7 @@ def read(path: str | os.PathLike, device: str = "qube_servo2",
         if np.mean(np.abs(current) >= 0.98 * limit) > 0.01:
             current = None  # saturated current says nothing of the circuit: fit from the voltage alone
     metadata = {"board_type": board_type, "device": device, "recording": os.path.abspath(name),
-                "format": "npz" if name.endswith(".npz") else "csv",
+                "format": os.path.splitext(name)[1].lstrip(".").lower() or "csv",
                 "conventions": dataclasses.asdict(conventions)}
     return Measurements(time=time - time[0], theta=theta, alpha=np.unwrap(alpha), voltage=voltage,
                         current=current, sample_time=sample_time, metadata=metadata,
@@ -135,6 +138,12 @@ def _columns(name: str) -> dict[str, np.ndarray]:
         if name.endswith(".npz"):
             with np.load(name, allow_pickle=False) as archive:
                 return {key: np.asarray(archive[key], dtype=float).ravel() for key in archive.files}
+        if name.endswith(".mat"):
+            from scipy.io import loadmat
+
+            variables = loadmat(name)
+            return {key: np.asarray(value, dtype=float).ravel() for key, value in variables.items()
+                    if not key.startswith("__") and np.asarray(value).dtype.kind in "iuf"}
         with open(name, newline="", encoding="utf-8") as file:
             rows = list(csv.reader(row for row in file if not row.startswith("#")))
     except (OSError, ValueError) as error:
