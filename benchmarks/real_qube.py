@@ -38,7 +38,7 @@ import time
 import numpy as np
 
 from qube_suite import calibration, parameters
-from qube_suite.calibration import prediction, recordings
+from qube_suite.calibration import calibration_file, prediction, recordings
 
 HORIZONS = (0.1, 0.5, 1.0)
 SMOOTHED_START = False
@@ -209,6 +209,7 @@ def save(chirps: list[str], path: str) -> None:
         "10 voltage chirps qs2_chirp_{pos,neg}_{0..4}.csv, converted from SimuRLacra "
         "(famura/SimuRLacra, Pyrado/data/perma/evaluation, BSD-3-Clause)"))
     c.save(path)
+    os.remove(calibration_file.randomization_path(path))  # the package ships the calibration alone
     print(f"calibration on {len(chirps)} chirps written to {path}")
 
 

@@ -63,6 +63,12 @@ def test_a_missing_column_is_named(tmp_path):
         recordings.read(path)
 
 
+def test_recordings_of_different_periods_are_not_fitted_together(tmp_path):
+    paths = [write(tmp_path / "a.csv", good_rows()), write(tmp_path / "b.csv", good_rows(period=0.002))]
+    with pytest.raises(ValueError, match="different sample periods"):
+        calibration.calibrate_recordings(paths)
+
+
 def test_conventions_and_npz_give_the_same_measurements(tmp_path):
     rows = good_rows()
     rows[:, 0] += 0.0004 * np.sin(np.arange(len(rows)))  # timestamps with jitter

@@ -107,7 +107,11 @@ def calibrate_recordings(paths: Sequence[str | os.PathLike], device: str = "qube
     read = [recordings.read(path, device, conventions) for path in paths]
     if len(read) == 1 and read[0].current is not None and free is None:
         return _calibrate_with_current(read[0])
-    periods = {round(m.sample_time, 9) for m in read}
+    periods = sorted({round(m.sample_time, 6) for m in read})
+    if len(periods) > 1:  # the latency is fitted in samples of one period
+        listed = ", ".join(f"{period:g} s" for period in periods)
+        raise ValueError(f"recordings of different sample periods ({listed}) cannot be fitted together; "
+                         "calibrate from those of one period")
     result = fit.fit_voltage(read, free=free)
     found = intervals.voltage_only_intervals(result)
     values = result.values
@@ -117,7 +121,6 @@ def calibrate_recordings(paths: Sequence[str | os.PathLike], device: str = "qube
     stiffness = values["cable_stiffness"]
     rest = values["arm_torque_offset"] / stiffness if found["cable_stiffness"][0] > 0.0 else None
     gain = parameters["motor_torque_constant"] / parameters["motor_resistance"]
-    sample_time = read[0].sample_time
     return Calibration(
         parameters=parameters,
         intervals={name: found[name] for name in (*VOLTAGE_ONLY_PARAMETERS, "voltage_deadzone")},
@@ -128,14 +131,13 @@ def calibrate_recordings(paths: Sequence[str | os.PathLike], device: str = "qube
                  "pendulum_encoder_offset": values["pendulum_encoder_offset"],
                  "arm_encoder_offset": None if rest is None else -rest},
         latency_steps=result.latency,
-        actuation={"latency_seconds": result.latency * sample_time,
+        actuation={"latency_seconds": result.latency * read[0].sample_time,
                    "voltage_deadzone": values["voltage_deadzone"]},
         held=("motor_resistance", "pendulum_mass", "arm_mass", "arm_length", "gravity", "motor_inductance"),
         identified={"motor_gain": gain,
                     "arm_viscous_total": values["arm_damping"] + gain * parameters["motor_back_emf"],
                     "arm_axis_inertia": params.arm_inertia(parameters["arm_mass"], parameters["arm_length"])
-                    + parameters["rotor_inertia"]},
-        prediction={"sample_times": sorted(periods)})
+                    + parameters["rotor_inertia"]})
 
 
 __all__ = ["Calibration", "calibrate", "calibrate_recording", "calibrate_recordings", "load"]
