@@ -564,8 +564,12 @@ def _calibrate(args: argparse.Namespace) -> int:
     out = pathlib.Path(args.out)
     if out.suffix not in (".yaml", ".yml"):
         raise ValueError(f"--out must name a .yaml file, got {args.out!r}")
+    if args.recording is not None and not all(path.endswith(".jsonl") for path in args.recording):
+        return _calibrate_recordings(args, out)
     if args.recording is not None:
-        result = calibration.calibrate_recording(args.recording, board_type=args.board)
+        if len(args.recording) > 1:
+            raise ValueError("an excitation experiment (.jsonl) is calibrated on its own: give one")
+        result = calibration.calibrate_recording(args.recording[0], board_type=args.board)
     else:
         domain_kwargs = {} if args.board is None else {"board": args.board}
         recording = out.with_suffix(".jsonl")
@@ -589,6 +593,26 @@ def _calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _calibrate_recordings(args: argparse.Namespace, out: pathlib.Path) -> int:
+    """Calibrate from CSV or .npz recordings of any logger (`calibration.recordings`)."""
+    from qube_suite import calibration
+    from qube_suite.calibration import calibration_file, recordings
+
+    conventions = recordings.Conventions(degrees=args.degrees,
+                                         pendulum_zero_hanging=args.pendulum_zero_hanging,
+                                         arm_sign=-1 if args.flip_arm else 1,
+                                         pendulum_sign=-1 if args.flip_pendulum else 1)
+    result = calibration.calibrate_recordings(args.recording, args.device, conventions)
+    result.save(out)
+    print(f"calibration: {out}; randomization config: {calibration_file.randomization_path(out)}")
+    print(f"latency {1e3 * result.actuation['latency_seconds']:.2f} ms; identified combinations: "
+          + ", ".join(f"{name} {value:.4g}" for name, value in result.combinations.items()))
+    for name, (low, high) in result.intervals.items():
+        value = result.parameters.get(name, result.actuation.get(name))
+        print(f"  {name:24s} {value:10.4g}   95 % [{low:.4g}, {high:.4g}]")
+    return 0
+
+
 def _add_calibrate(commands) -> None:
     calibrate = commands.add_parser(
         "calibrate", help="identify a Qube's model from a one-minute experiment",
@@ -597,13 +621,25 @@ def _add_calibrate(commands) -> None:
                     "config centred on it and a report (HTML and PNG) beside --out.",
         epilog="examples:\n"
                "  qube-suite calibrate --domain qube_hardware --board qube_servo2_usb --out my_qube.yaml\n"
-               "  qube-suite calibrate --recording my_qube.jsonl --out my_qube.yaml",
+               "  qube-suite calibrate --recording my_qube.jsonl --out my_qube.yaml\n"
+               "  qube-suite calibrate --recording run1.csv run2.csv --device qube_servo2 --out my_qube.yaml",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     source = calibrate.add_mutually_exclusive_group(required=True)
     source.add_argument("--domain", choices=("qube_hardware",),
                         help="run the experiment on this domain (a board: the substitute by default; the fit "
                              "needs the motor current, which only a board measures)")
-    source.add_argument("--recording", help="fit an experiment recorded earlier (JSON lines)")
+    source.add_argument("--recording", nargs="+", metavar="FILE",
+                        help="fit recordings made earlier: one excitation experiment (JSON lines), or "
+                             "recordings from any logger (CSV, .npz or .mat with time, voltage, arm_angle, "
+                             "pendulum_angle; see docs/calibration.md), fitted together")
+    calibrate.add_argument("--device", choices=("qube_servo2", "qube_servo3"), default="qube_servo2",
+                           help="with CSV/.npz recordings: the Qube they come from (default: qube_servo2)")
+    calibrate.add_argument("--degrees", action="store_true", help="CSV/.npz angles are in degrees")
+    calibrate.add_argument("--pendulum-zero-hanging", action="store_true",
+                           help="CSV/.npz pendulum angle is 0 hanging (the suite's 0 is upright)")
+    calibrate.add_argument("--flip-arm", action="store_true", help="CSV/.npz arm angle has the opposite sign")
+    calibrate.add_argument("--flip-pendulum", action="store_true",
+                           help="CSV/.npz pendulum angle has the opposite sign")
     calibrate.add_argument("--board", default=None,
                            help="board: simulated (default), or the real board's type, e.g. qube_servo2_usb; "
                                 "with --recording, the board type the recording must come from")
@@ -612,6 +648,26 @@ def _add_calibrate(commands) -> None:
     calibrate.add_argument("--seed", type=int, default=0, help="seed of the excitation (default: 0)")
     calibrate.add_argument("--out", required=True, help="the calibration file to write (.yaml)")
     calibrate.set_defaults(run=_calibrate)
+
+
+def _export_recording(args: argparse.Namespace) -> int:
+    from qube_suite.calibration import recordings
+
+    print(f"episode {args.episode} written to {recordings.export(args.source, args.out, args.episode)}")
+    return 0
+
+
+def _add_recording(commands) -> None:
+    recording = commands.add_parser("recording", help="convert the suite's recordings")
+    actions = recording.add_subparsers(dest="action", required=True)
+    export = actions.add_parser(
+        "export", help="write an episode of a recording (JSON lines) as CSV for calibration and other tools",
+        description="Write one episode of a qube_suite recording in the CSV format 'qube-suite calibrate "
+                    "--recording' reads (time, voltage, arm_angle, pendulum_angle, ...).")
+    export.add_argument("source", help="the recording (.jsonl)")
+    export.add_argument("--out", required=True, help="the CSV file to write")
+    export.add_argument("--episode", type=int, default=0, help="which episode (default: 0)")
+    export.set_defaults(run=_export_recording)
 
 
 
@@ -697,7 +753,7 @@ def _add_adapt(commands) -> None:
 
 
 SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_train, _add_bench, _add_calibrate,
-               _add_check_board, _add_adapt)
+               _add_check_board, _add_adapt, _add_recording)
 """Parser builders of the subcommands, in the order `--help` lists them."""
 
 

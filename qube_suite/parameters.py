@@ -70,6 +70,12 @@ PARAMETERS: types.MappingProxyType[str, Parameter] = types.MappingProxyType({p.n
 NOMINAL: types.MappingProxyType[str, float] = types.MappingProxyType({p.name: p.nominal for p in _TABLE})
 """Nominal value of every parameter by long name."""
 
+REAL_QUBE_SERVO2 = os.path.join(os.path.dirname(os.path.abspath(__file__)), "assets", "real_qube_servo2.yaml")
+"""A calibration of a real Qube-Servo 2 (TU Darmstadt's, from ten voltage chirps it recorded;
+`benchmarks/real_qube.py --save`): `domain_kwargs={"parameters": REAL_QUBE_SERVO2}` simulates it,
+its latency, dead zone, cable and encoder offset included. The nominal values above stay the
+defaults: the shipped policies and tuned controllers were made for them (docs/calibration.md)."""
+
 PENDULUM_ROD_RADIUS = 0.0045
 """Radius of the pendulum rod (m); gives its small inertia about its own axis."""
 
@@ -113,6 +119,36 @@ def _check_nonpositive(name: str, value: float) -> None:
     minimum_is_zero = may_be_zero(name)
     if value < 0.0 or (value == 0.0 and not minimum_is_zero):
         raise ValueError(f"parameter {name!r} must be {'>= 0' if minimum_is_zero else '> 0'}, got {value}")
+
+
+CALIBRATED_EFFECTS = ("latency_seconds", "voltage_deadzone", "cable_rest_angle", "pendulum_encoder_offset")
+"""What a calibration identifies beyond the parameters and a simulation reproduces (`effects_of`)."""
+
+
+def effects_of(source: Mapping[str, float] | str | os.PathLike | Any | None) -> dict[str, float]:
+    """The calibrated effects of `source` (as for `values_of`) by the names of CALIBRATED_EFFECTS,
+    those it identified only: the latency (s, a fraction of a sample allowed) and the voltage's dead
+    zone (V) of its `actuation`, the cable's rest angle (rad, minus its `arm_encoder_offset`: the
+    fit cannot tell a cable at rest off the encoder's zero from an encoder zeroed off the cable's
+    rest, and the simulation takes the former) and the pendulum encoder's offset (rad; true angle =
+    encoder angle + offset). A mapping of parameters has none."""
+    if source is None or isinstance(source, Mapping):
+        return {}
+    if isinstance(source, (str, os.PathLike)):
+        import yaml
+
+        with open(source, encoding="utf-8") as file:
+            content = yaml.safe_load(file) or {}
+        actuation, offsets = content.get("actuation") or {}, content.get("offsets") or {}
+    else:
+        actuation, offsets = getattr(source, "actuation", {}) or {}, getattr(source, "offsets", {}) or {}
+    effects = {name: float(actuation[name]) for name in ("latency_seconds", "voltage_deadzone")
+               if actuation.get(name)}
+    if offsets.get("arm_encoder_offset") is not None:
+        effects["cable_rest_angle"] = -float(offsets["arm_encoder_offset"])
+    if offsets.get("pendulum_encoder_offset"):
+        effects["pendulum_encoder_offset"] = float(offsets["pendulum_encoder_offset"])
+    return effects
 
 
 def values_of(source: Mapping[str, float] | str | os.PathLike | Any | None) -> dict[str, float]:

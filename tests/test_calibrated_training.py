@@ -154,3 +154,16 @@ def test_a_calibrated_run_fine_tunes_the_adaptive_policy_and_exports_its_history
     for _ in range(12):
         np.testing.assert_array_equal(tuned.actions(states), shipped.actions(states))
         states = states + 0.02
+
+
+def test_the_randomization_contains_a_calibrated_latency():
+    from qube_suite.domains import qube
+    from qube_suite.randomization import Randomizer
+
+    config = calibrated.randomization_for(parameters.REAL_QUBE_SERVO2)
+    physics = qube.make_physics(250.0)
+    randomizer = Randomizer(load_randomization(config), physics, 1.0 / 250.0)
+    rng = np.random.RandomState(0)
+    seconds = [randomizer.draw(rng).effects["action_delay"]["seconds"] for _ in range(40)]
+    delays = {int(np.rint(s / 0.004)) for s in seconds}  # as the delay rounds them
+    assert delays == {0, 1, 2, 3}  # 0 to 12 ms at 250 Hz: the Qube's 6 ms (1.5 steps) in the middle

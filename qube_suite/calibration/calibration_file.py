@@ -17,6 +17,7 @@
     combinations: {arm_acceleration_per_ampere: 686.3, arm_axis_inertia: 6.12e-05}
     offsets: {arm_torque_offset: ..., pendulum_encoder_offset: ..., arm_encoder_offset: ...}
     latency_steps: 0                     # samples between a recorded voltage and its action
+    actuation: {latency_seconds: 0.0052, voltage_deadzone: 0.06}   # recordings without current
     prediction: {horizon: 0.5, nominal_rms: 0.12, calibrated_rms: 0.015}   # held-out segments, rad
 
 The `parameters` mapping is what `suite.load("qube", ..., domain_kwargs={"parameters": path})`
@@ -32,6 +33,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from qube_suite import parameters as params
+from qube_suite.calibration.fit import VOLTAGE_NAMES
 from qube_suite.calibration.identifiability import FITTED, FIXED
 
 FORMAT = "qube_suite.calibration"
@@ -54,19 +56,28 @@ class Calibration:
     offsets: dict[str, float] = dataclasses.field(default_factory=dict)
     """arm_torque_offset (N m), pendulum_encoder_offset (rad), arm_encoder_offset (rad, or None
     where the cable's stiffness is too small to tell)."""
-    latency_steps: int = 0
+    latency_steps: float = 0
     prediction: dict[str, float] = dataclasses.field(default_factory=dict)
+    actuation: dict[str, float] = dataclasses.field(default_factory=dict)
+    """What acts between the recorded voltage and the motor, where identified: latency_seconds (s,
+    a fraction of a sample allowed) and voltage_deadzone (V). The simulation applies both."""
+    held: tuple[str, ...] | None = None
+    """Parameters held at nominal, where they differ from the current-based fit's `FIXED`."""
+    identified: dict[str, float] | None = None
+    """Identified combinations, where they differ from the current-based fit's."""
 
     @property
     def fixed(self) -> tuple[str, ...]:
         """Parameters held at nominal."""
-        return tuple(FIXED)
+        return tuple(FIXED) if self.held is None else tuple(self.held)
 
     @property
     def combinations(self) -> dict[str, float]:
         """What the recording identifies where single parameters are not: the arm's acceleration
         per ampere of motor current with the pendulum at the pivot, kt / (Jr + Jm) (rad/s^2/A),
         and the arm-axis inertia Jr + Jm (kg m^2) assumed for it (nominal)."""
+        if self.identified is not None:
+            return dict(self.identified)
         p = self.parameters
         inertia = params.arm_inertia(p["arm_mass"], p["arm_length"]) + p["rotor_inertia"]
         return {"arm_acceleration_per_ampere": p["motor_torque_constant"] / inertia,
@@ -77,6 +88,8 @@ class Calibration:
         uniformly from its interval, widened `width` times about the estimate (never below 0)."""
         config = {}
         for name, (low, high) in self.intervals.items():
+            if name not in params.PARAMETERS:
+                continue  # an effect (the dead zone) rather than a parameter
             value = self.parameters[name]
             low, high = value - width * (value - low), value + width * (high - value)
             low = max(low, 0.0) if params.may_be_zero(name) else max(low, 0.05 * value)
@@ -94,7 +107,8 @@ class Calibration:
                 "parameters": dict(self.parameters),
                 "intervals": {name: [low, high] for name, (low, high) in self.intervals.items()},
                 "fixed": list(self.fixed), "combinations": self.combinations, "offsets": dict(self.offsets),
-                "latency_steps": self.latency_steps, "prediction": dict(self.prediction)}
+                "latency_steps": self.latency_steps, "actuation": dict(self.actuation),
+                "prediction": dict(self.prediction)}
         with open(path, "w", encoding="utf-8") as file:
             yaml.safe_dump(_plain(data), file, sort_keys=False)
         with open(randomization_path(path), "w", encoding="utf-8") as file:
@@ -118,14 +132,17 @@ def load(path: str | os.PathLike) -> Calibration:
         raise ValueError(f"{os.fspath(path)} is not a qube_suite calibration (format {FORMAT!r})")
     parameters = params.resolve({name: float(value) for name, value in data["parameters"].items()})
     intervals = {name: (float(low), float(high)) for name, (low, high) in data["intervals"].items()}
-    unknown = set(intervals) - {q.name for q in FITTED}
+    unknown = set(intervals) - {q.name for q in FITTED} - set(VOLTAGE_NAMES)
     if unknown:
         raise ValueError(f"{os.fspath(path)}: intervals of unknown parameters {sorted(unknown)}")
     return Calibration(parameters=parameters, intervals=intervals,
                        metadata={key: data.get(key) for key in METADATA},
                        offsets=dict(data.get("offsets") or {}),
-                       latency_steps=int(data.get("latency_steps", 0)),
-                       prediction=dict(data.get("prediction") or {}))
+                       latency_steps=float(data.get("latency_steps", 0)),
+                       prediction=dict(data.get("prediction") or {}),
+                       actuation=dict(data.get("actuation") or {}),
+                       held=None if data.get("fixed") is None else tuple(data["fixed"]),
+                       identified=dict(data.get("combinations") or {}) or None)
 
 
 def _plain(value: Any) -> Any:

@@ -49,8 +49,8 @@ import numpy as np
 from scipy.ndimage import minimum_filter1d
 
 from qube_suite import parameters
-from qube_suite.calibration.identifiability import FITTED, OFFSETS
-from qube_suite.calibration.measurements import SMOOTHING_WINDOW, Measurements
+from qube_suite.calibration.identifiability import FITTED, OFFSETS, Fitted
+from qube_suite.calibration.measurements import Measurements
 
 SLIDING_SPEED = 0.05
 """A joint counts as sliding where its speed stays above this (rad/s) across the smoothing window."""
@@ -115,7 +115,8 @@ def signals(measurements: Measurements, latency: int, samples: np.ndarray | None
     voltage_before = np.concatenate([np.zeros(shift), measurements.voltage[:-shift]])
     n = len(measurements)
     usable = np.zeros(n, dtype=bool)
-    usable[max(SMOOTHING_WINDOW, MAX_LATENCY + 1):n - SMOOTHING_WINDOW] = True
+    edge = measurements.smoothing_window
+    usable[max(edge, MAX_LATENCY + 1):n - edge] = True
     if samples is not None:
         chosen = np.zeros_like(usable)
         chosen[samples] = True
@@ -125,7 +126,7 @@ def signals(measurements: Measurements, latency: int, samples: np.ndarray | None
     starts = starts[whole]
 
     def sliding(speed: np.ndarray) -> np.ndarray:
-        slow = minimum_filter1d(np.abs(speed), INTERVAL + 1 + 2 * SMOOTHING_WINDOW,
+        slow = minimum_filter1d(np.abs(speed), INTERVAL + 1 + 2 * edge,
                                 origin=-(INTERVAL // 2)) > SLIDING_SPEED
         return slow[starts]
 
@@ -268,3 +269,197 @@ def best_latency(measurements: Measurements, samples: np.ndarray | None = None) 
         _, residual, *_ = np.linalg.lstsq(design, s.voltage_before[s.rows], rcond=None)
         errors.append(float(residual[0]) if residual.size else math.inf)
     return int(np.argmin(errors))
+
+
+# -- from the encoders and the voltage alone ---------------------------------------------------------
+#
+# Without the motor current the circuit equation is gone and the motor's torque over each sample
+# interval follows from the voltage that acted in it: (kt / Rm) (V - km theta'), with km = kt (one
+# constant in SI units). Only kt / Rm is identified, so Rm stays at nominal. The torque scale is
+# anchored by the pendulum's mass (weighed: Quanser's 24 g) rather than by the arm-axis inertia,
+# which on a real Qube includes the hub and the encoder disc and is fitted here as the rotor's.
+# The arm's viscous damping and the back-EMF both oppose theta' in proportion: only their sum is
+# identified, reported as a combination.
+
+VOLTAGE_ONLY: tuple[Fitted, ...] = (
+    Fitted("motor_torque_constant", parameters.NOMINAL["motor_torque_constant"], "N m/A"),
+    Fitted("rotor_inertia", parameters.NOMINAL["rotor_inertia"], "kg m^2"),
+    Fitted("pendulum_length", parameters.NOMINAL["pendulum_length"], "m"),
+    Fitted("arm_damping", 1.0e-5, "N m s/rad", 2.0e-5),
+    Fitted("arm_friction", 1.0e-3, "N m", 1.5e-4),
+    Fitted("cable_stiffness", 1.0e-3, "N m/rad", 1.5e-4),
+    Fitted("pendulum_damping", 1.0e-6, "N m s/rad", 1.0e-6),
+    Fitted("pendulum_friction", 1.0e-4, "N m", 1.5e-5),
+    Fitted("voltage_deadzone", 0.1, "V", 0.01),
+) + OFFSETS
+"""The unknowns of the voltage-only fit, in its order."""
+VOLTAGE_NAMES = tuple(q.name for q in VOLTAGE_ONLY)
+VOLTAGE_SCALES = np.array([q.scale for q in VOLTAGE_ONLY])
+VOLTAGE_LOWER = np.array([0.3 if name in ("motor_torque_constant", "pendulum_length")
+                          else (-30.0 if name.endswith("offset") else 0.0) for name in VOLTAGE_NAMES])
+VOLTAGE_UPPER = np.array([3.0 if name in ("motor_torque_constant", "pendulum_length")
+                          else (30.0 if name.endswith("offset") or name == "voltage_deadzone" else 100.0)
+                          for name in VOLTAGE_NAMES])
+"""Bounds of the scaled unknowns: the torque constant and the length within 0.3 to 3 times nominal,
+the rotor's inertia and the friction-like ones within 0 and 100 times their scale."""
+LATENCY_STEP = 0.25
+"""Resolution (samples) of the latency search of the voltage-only fit."""
+
+
+def voltage_signals(measurements: Measurements, samples: np.ndarray | None = None) -> Signals:
+    """The voltage-only fit's inputs from `measurements` (the latency enters later, in
+    `voltage_equations`); `samples` as for `signals`."""
+    return signals(dataclasses.replace(measurements, current=np.zeros(len(measurements))), 0, samples)
+
+
+def delayed_voltage(voltage: np.ndarray, latency: float) -> np.ndarray:
+    """The voltage that acts over each sample interval when the recorded one acts `latency` samples
+    late (a fraction of a sample mixes two neighbours in proportion); 0 V before the recording."""
+    whole = int(math.floor(latency))
+    fraction = latency - whole
+    padded = np.concatenate([np.zeros(whole + 1), voltage])
+    current = padded[1:len(voltage) + 1]
+    before = padded[:len(voltage)]
+    return (1.0 - fraction) * current + fraction * before
+
+
+def voltage_equations(x: np.ndarray, s: Signals, voltage: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The arm's and the pendulum's momentum-balance residuals (N m s, per interval in which the
+    joint slides) at scaled voltage-only unknowns `x` (n,) or (n, k), `voltage` acting over each
+    sample interval (V, latency applied)."""
+    values = x * (VOLTAGE_SCALES if x.ndim == 1 else VOLTAGE_SCALES[:, None])
+    p = dict(zip(VOLTAGE_NAMES, values, strict=True))
+    column = (lambda a: a[:, None]) if x.ndim > 1 else (lambda a: a)
+    th, dth, dal = column(s.theta), column(s.dtheta), column(s.dalpha)
+    al = column(s.alpha) + p["pendulum_encoder_offset"]
+    sin, cos = np.sin(al), np.cos(al)
+    mp, lp, lr = parameters.NOMINAL["pendulum_mass"], p["pendulum_length"], parameters.NOMINAL["arm_length"]
+    half = 0.5 * lp
+    axial = 0.5 * mp * parameters.PENDULUM_ROD_RADIUS**2
+    transverse = mp * lp * lp / 12.0
+    base = (parameters.arm_inertia(parameters.NOMINAL["arm_mass"], lr) + p["rotor_inertia"]
+            + mp * lr * lr + axial)
+    swing = mp * half * half + transverse - axial
+    coupling = mp * lr * half
+    m22 = mp * half * half + transverse
+    m12 = -coupling * cos
+    kt = p["motor_torque_constant"]
+    gain = kt / parameters.NOMINAL["motor_resistance"]
+    middle_speed = 0.5 * (dth + np.concatenate([dth[1:], dth[-1:]]))
+    drive = column(voltage)
+    drive = np.sign(drive) * np.maximum(np.abs(drive) - p["voltage_deadzone"], 0.0)
+    motor_torque = gain * (drive - kt * middle_speed)
+    arm_momentum = (base + swing * sin * sin) * dth + m12 * dal
+    pendulum_momentum = m12 * dth + m22 * dal
+    arm_torque = (-p["arm_damping"] * dth - p["arm_friction"] * np.sign(dth)
+                  - p["cable_stiffness"] * th + p["arm_torque_offset"])
+    pendulum_torque = (swing * sin * cos * dth * dth + coupling * sin * dth * dal
+                       + mp * parameters.NOMINAL["gravity"] * half * sin
+                       - p["pendulum_damping"] * dal - p["pendulum_friction"] * np.sign(dal))
+    arm = _balance(arm_momentum, arm_torque, motor_torque, s.starts[s.arm_sliding], s.sample_time)
+    pendulum = _balance(pendulum_momentum, pendulum_torque, 0.0, s.starts[s.pendulum_sliding], s.sample_time)
+    return arm, pendulum
+
+
+@dataclasses.dataclass(frozen=True)
+class VoltageFitResult:
+    """The voltage-only fit's scaled estimate, latency (samples, a fraction allowed), weights and
+    the recordings' signals and voltages it was fitted on."""
+
+    x: np.ndarray
+    latency: float
+    weights: tuple[float, float]
+    """1 / spread of the arm's and the pendulum's residuals (N m s) at the estimate."""
+    signals: tuple[Signals, ...]
+    voltages: tuple[np.ndarray, ...]
+    """Each recording's voltage, as recorded (V)."""
+    names: tuple[str, ...] = VOLTAGE_NAMES
+    scales: np.ndarray = dataclasses.field(default_factory=lambda: VOLTAGE_SCALES)
+
+    @property
+    def values(self) -> dict[str, float]:
+        """The estimates by name, in their units."""
+        return {name: float(value) for name, value in zip(self.names, self.x * self.scales, strict=True)}
+
+    def residual(self, x: np.ndarray) -> np.ndarray:
+        """Weighted residual vector at scaled `x` (n,) or (n, k), every recording's stacked."""
+        return _voltage_residual(x, self.signals, self.voltages, self.latency, self.weights)
+
+    def jacobian(self) -> np.ndarray:
+        """Jacobian of the weighted residual with respect to the scaled unknowns at the estimate."""
+        r = self.residual(self.x)
+        jacobian, _ = mujoco.minimize.jacobian_fd(
+            residual=self.residual, x=self.x[:, None], r=r[:, None], eps=1e-6, n_res=0,
+            bounds=[VOLTAGE_LOWER[:, None], VOLTAGE_UPPER[:, None]])
+        return np.asarray(jacobian)
+
+    def blocks(self) -> np.ndarray:
+        """The block index of each residual (distinct between recordings), in the residual's order."""
+        arms, pendulums = [], []
+        for i, s in enumerate(self.signals):
+            offset = i * 1_000_000
+            arms.append(offset + s.block[s.starts[s.arm_sliding]])
+            pendulums.append(offset + s.block[s.starts[s.pendulum_sliding]])
+        return np.concatenate(arms + pendulums)
+
+
+def _voltage_parts(x, signals_, voltages, latency) -> tuple[np.ndarray, np.ndarray]:
+    parts = [voltage_equations(x, s, delayed_voltage(v, latency))
+             for s, v in zip(signals_, voltages, strict=True)]
+    return (np.concatenate([arm for arm, _ in parts], axis=0),
+            np.concatenate([pendulum for _, pendulum in parts], axis=0))
+
+
+def _voltage_residual(x, signals_, voltages, latency, weights) -> np.ndarray:
+    arm, pendulum = _voltage_parts(x, signals_, voltages, latency)
+    return np.concatenate([weights[0] * arm, weights[1] * pendulum], axis=0)
+
+
+def fit_voltage(recordings: list[Measurements], samples: list[np.ndarray | None] | None = None,
+                latency: float | None = None, free: tuple[str, ...] | None = None) -> VoltageFitResult:
+    """Fit the voltage-only unknowns to several `recordings` at once, each on its sample indices
+    `samples` (None: all).
+
+    `latency` (samples, a fraction allowed): None searches 0 to MAX_LATENCY in steps of LATENCY_STEP.
+    `free`: the unknowns fitted (None: all of `VOLTAGE_ONLY`); the others stay at their nominal value
+    (0 for the friction-like ones and the offsets), which is how the benchmark measures what each
+    part of the model buys.
+    """
+    samples = samples or [None] * len(recordings)
+    signals_ = tuple(voltage_signals(m, chosen) for m, chosen in zip(recordings, samples, strict=True))
+    voltages = tuple(m.voltage for m in recordings)
+    free = VOLTAGE_NAMES if free is None else free
+    unknown = set(free) - set(VOLTAGE_NAMES)
+    if unknown:
+        raise ValueError(f"unknown unknowns {sorted(unknown)}; valid: {', '.join(VOLTAGE_NAMES)}")
+    mask = np.array([name in free for name in VOLTAGE_NAMES])
+    start = np.array([1.0 if name in ("motor_torque_constant", "rotor_inertia", "pendulum_length") else 0.0
+                      for name in VOLTAGE_NAMES])
+
+    def solve(lat: float) -> tuple[np.ndarray, tuple[float, float], float]:
+        x = start.copy()
+        weights = (1e4, 1e5)
+        for _ in range(2):
+            def residual(z, w=weights):
+                full = np.repeat(x[:, None], z.shape[1], axis=1) if z.ndim > 1 else x.copy()
+                full[mask] = z
+                return _voltage_residual(full, signals_, voltages, lat, w)
+            z, _ = mujoco.minimize.least_squares(x[mask], residual, verbose=0, max_iter=100,
+                                                 bounds=[VOLTAGE_LOWER[mask], VOLTAGE_UPPER[mask]])
+            x[mask] = z
+            weights = tuple(1.0 / max(float(np.sqrt(np.mean(part**2))), 1e-12)
+                            for part in _voltage_parts(x, signals_, voltages, lat))
+        arm, _ = _voltage_parts(x, signals_, voltages, lat)
+        cost = float(np.mean(arm**2))
+        return x, weights, cost
+
+    if latency is not None:
+        best = solve(latency) + (latency,)
+    else:  # whole samples first, then quarter samples around the best
+        best = min((solve(float(lat)) + (float(lat),) for lat in range(MAX_LATENCY + 1)), key=lambda f: f[2])
+        for lat in (best[3] - 2 * LATENCY_STEP, best[3] - LATENCY_STEP, best[3] + LATENCY_STEP,
+                    best[3] + 2 * LATENCY_STEP):
+            if 0.0 <= lat <= MAX_LATENCY:
+                best = min(best, solve(lat) + (lat,), key=lambda f: f[2])
+    x, weights, _, lat = best
+    return VoltageFitResult(x=x, latency=float(lat), weights=weights, signals=signals_, voltages=voltages)

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from qube_suite import parameters
-from qube_suite.calibration.fit import NAMES, SCALES, FitResult
+from qube_suite.calibration.fit import NAMES, SCALES, VOLTAGE_ONLY, FitResult
 from qube_suite.calibration.identifiability import FITTED, FIXED, OFFSETS, TORQUE_SCALED
 
 Z95 = 1.959963984540054
@@ -113,4 +113,19 @@ def intervals(result: FitResult) -> dict[str, tuple[float, float]]:
         if name in parameters.PARAMETERS:
             low = max(low, 0.0)
         found[name] = (low, values[name] + half)
+    return found
+
+
+def voltage_only_intervals(result) -> dict[str, tuple[float, float]]:
+    """95 % interval (low, high) of every unknown of a voltage-only fit (`fit.VoltageFitResult`), in
+    its unit: 1.96 block-sandwich standard deviations times `INFLATION`, never narrower than the
+    unknown's tolerance. No bias bound: there is no known plant to measure one against; the benchmark
+    (`benchmarks/real_qube.py`) compares these widths with the spread of per-recording calibrations."""
+    sigma = np.sqrt(np.maximum(np.diag(block_covariance(result)), 0.0)) * result.scales * INFLATION
+    quantities = {q.name: q for q in VOLTAGE_ONLY}
+    found = {}
+    for name, value in result.values.items():
+        half = max(Z95 * float(sigma[result.names.index(name)]), quantities[name].absolute_tolerance)
+        low = max(value - half, 0.0) if not name.endswith("offset") else value - half
+        found[name] = (low, value + half)
     return found

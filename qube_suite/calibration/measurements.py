@@ -53,12 +53,14 @@ class Measurements:
     """Pendulum angle from encoder 1, unwrapped, pi = hanging at the encoder's zero (rad)."""
     voltage: np.ndarray
     """Voltage written at each sample (V); it acts until the next sample."""
-    current: np.ndarray
-    """Motor current read at each sample (A)."""
+    current: np.ndarray | None
+    """Motor current read at each sample (A); None where the recording has none."""
     sample_time: float
     """Time between samples (s)."""
     metadata: dict[str, Any]
     """The recording's header (board type, identifier, date, ...) and its path."""
+    smoothing_window: int = SMOOTHING_WINDOW
+    """Samples in the Savitzky-Golay window of `derivatives`."""
 
     def __len__(self) -> int:
         return len(self.time)
@@ -70,7 +72,7 @@ class Measurements:
 
     def derivatives(self, signal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(value, derivative) of `signal`, smoothed without lag (per s)."""
-        window, h = SMOOTHING_WINDOW, self.sample_time
+        window, h = self.smoothing_window, self.sample_time
         order = SMOOTHING_ORDER
         return savgol_filter(signal, window, order), savgol_filter(signal, window, order, deriv=1, delta=h)
 

@@ -42,8 +42,10 @@ class Predictions:
 
     @property
     def error_at_horizon(self) -> np.ndarray:
-        """[theta, alpha] error (rad) at the horizon of each rollout, shape (starts, 2)."""
-        return self.predicted[:, -1] - self.measured[:, -1]
+        """[theta, alpha] error (rad) at the horizon of each rollout, shape (starts, 2), wrapped to
+        (-pi, pi]: a pendulum predicted one turn off over the top is where it was measured."""
+        error = self.predicted[:, -1] - self.measured[:, -1]
+        return np.mod(error + np.pi, 2.0 * np.pi) - np.pi
 
     @property
     def rms_at_horizon(self) -> float:
@@ -52,34 +54,48 @@ class Predictions:
 
 
 def predict(measurements: Measurements, parameters: Mapping[str, float], samples: np.ndarray,
-            latency: int = 0, offsets: tuple[float, float] = (0.0, 0.0)) -> Predictions:
+            latency: float = 0, offsets: tuple[float, float] = (0.0, 0.0), horizon: float = HORIZON,
+            voltage_deadzone: float = 0.0, cable_rest_angle: float = 0.0,
+            smoothed_start: bool = False) -> Predictions:
     """0.5 s-ahead rollouts of the simulated Qube with `parameters` (long names) from starts every
     `START_SPACING` within the sample indices `samples` (whose windows lie within them too).
 
     The state at each start is estimated from the `ESTIMATION_TIME` before it only: the model's
     rollout over that time is fitted to the recorded angles (Gauss-Newton on its initial angles and
     speeds, which start from the lag-free filter's estimate), so a prediction uses no recorded
-    angle after its start. `latency`: samples between a recorded voltage and its action;
-    `offsets`: the encoders' offsets (rad), added to the recorded angles.
+    angle after its start. `latency`: samples between a recorded voltage and its action (a fraction
+    mixes neighbouring samples, `fit.delayed_voltage`); `offsets`: the encoders' offsets (rad), added
+    to the recorded angles; `horizon`: how far ahead (s); `voltage_deadzone` (V) and
+    `cable_rest_angle` (rad): the effects the simulation adds (`domains.qube.CalibratedActuation`
+    and the cable's rest angle). `smoothed_start`: start instead from the zero-phase filter's angles
+    and speeds at the start itself (which see half its window, 5 samples, past the start): the
+    metric of `../shared/real_qube/README.md`, independent of the model.
     """
+    from qube_suite.calibration.fit import delayed_voltage
+
     h = measurements.sample_time
-    steps, past = round(HORIZON / h), round(ESTIMATION_TIME / h)
+    steps, past = round(horizon / h), round(ESTIMATION_TIME / h)
     inside = np.zeros(len(measurements), dtype=bool)
     inside[samples] = True
     spacing = max(1, round(START_SPACING / h))
-    candidates = np.arange(past + latency + 25, len(measurements) - steps - 25, spacing)
+    candidates = np.arange(past + 25, len(measurements) - steps - 25, spacing)
     starts = np.array([k for k in candidates if inside[k - past:k + steps + 1].all()], dtype=int)
     angles = np.stack([measurements.theta + offsets[0], measurements.alpha + offsets[1]], axis=-1)
     theta, dtheta = measurements.derivatives(measurements.theta)
     alpha, dalpha = measurements.derivatives(measurements.alpha)
+    if smoothed_start:
+        past = 0
     first = starts - past
     guess = np.stack([theta[first] + offsets[0], alpha[first] + offsets[1], dtheta[first], dalpha[first]],
                      axis=-1)
     total = past + steps
-    voltages = np.stack([measurements.voltage[j - latency:j - latency + total] for j in first])
+    acting = delayed_voltage(measurements.voltage, latency)
+    acting = np.sign(acting) * np.maximum(np.abs(acting) - voltage_deadzone, 0.0)
+    voltages = np.stack([acting[j:j + total] for j in first])
     recorded = np.stack([angles[j:j + total + 1] for j in first])
-    with _Simulator(parameters, 1.0 / h) as simulator:
-        state = simulator.fit_initial_state(guess, voltages[:, :past], recorded[:, :past + 1])
+    with _Simulator(parameters, 1.0 / h, cable_rest_angle) as simulator:
+        state = guess if smoothed_start else simulator.fit_initial_state(guess, voltages[:, :past],
+                                                                          recorded[:, :past + 1])
         predicted = simulator.rollout(state, voltages)[:, past:]
     return Predictions(starts=starts, time=np.arange(steps + 1) * h, predicted=predicted,
                        measured=recorded[:, past:])
@@ -88,8 +104,11 @@ def predict(measurements: Measurements, parameters: Mapping[str, float], samples
 class _Simulator:
     """Batched rollouts of the simulated Qube (`mujoco.rollout`), one physics step per sample or more."""
 
-    def __init__(self, parameters: Mapping[str, float], control_frequency: float):
+    def __init__(self, parameters: Mapping[str, float], control_frequency: float,
+                 cable_rest_angle: float = 0.0):
         self._physics = qube.make_physics(control_frequency, parameters)
+        model = self._physics.model.ptr
+        model.qpos_spring[self._physics._ids.arm_qpos] = cable_rest_angle
         self._substeps = qube.substeps_per_control_period(control_frequency)
 
     def __enter__(self) -> _Simulator:

@@ -76,6 +76,8 @@ class Physics(MeasuredState, dm_mujoco.Physics):
 
     _measurement_ready = False
     _parameters_written = False
+    _calibrated_actuation = None
+    _encoder_offsets = None
 
     # -- construction -------------------------------------------------------------
 
@@ -146,6 +148,8 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         new = super().copy(share_model=share_model)
         new._parameters = dict(self._parameters)
         new._led = self._led
+        if hasattr(self, "_effects"):
+            new.set_calibrated_effects(*self._effects)
         return new
 
     # -- parameters ---------------------------------------------------------------
@@ -166,6 +170,21 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         self._parameters_written = True
         self._set_state(state)
 
+    def set_calibrated_effects(self, effects: Mapping[str, float], control_period: float) -> None:
+        """Reproduce a calibration's effects (`parameters.effects_of`; empty: none), unknown to
+        controllers like randomization's: its latency (s, a fraction of a control period allowed) and
+        voltage dead zone between a command and the motor, the cable's rest angle, the pendulum
+        encoder's offset. They act before any randomization effects. `control_period`: s."""
+        self._effects = (dict(effects), control_period)
+        period = control_period
+        latency, deadzone = effects.get("latency_seconds", 0.0), effects.get("voltage_deadzone", 0.0)
+        self._calibrated_actuation = (CalibratedActuation(latency / period, deadzone)
+                                      if latency or deadzone else None)
+        self._model_ptr.qpos_spring[self._arm_qpos] = effects.get("cable_rest_angle", 0.0)
+        offset = effects.get("pendulum_encoder_offset", 0.0)
+        self._encoder_offsets = None if not offset else PendulumEncoderOffset(offset)
+        self._measure_afresh()
+
     # -- the domain interface -------------------------------------------------------
 
     def true_state(self) -> np.ndarray:
@@ -179,6 +198,8 @@ class Physics(MeasuredState, dm_mujoco.Physics):
     def set_voltage(self, volts: float) -> None:
         """Command `volts` to the motor until the next call."""
         self._voltage = volts
+        if self._calibrated_actuation is not None:
+            volts = self._calibrated_actuation(volts)
         self._ctrl[0] = volts if self._actuator_model is None else self._actuator_model(volts)
 
     def set_sensor_model(self, sensor_model) -> None:
@@ -269,6 +290,8 @@ class Physics(MeasuredState, dm_mujoco.Physics):
             self._undo_step(before, exact)
             return
         self._exact = exact
+        if self._encoder_offsets is not None:
+            exact = self._encoder_offsets(exact)
         self._measured = exact if self._sensor_model is None else self._sensor_model(exact)
 
     def time(self) -> float:
@@ -312,11 +335,15 @@ class Physics(MeasuredState, dm_mujoco.Physics):
 
     def _restart_actuation(self) -> None:
         self._voltage = 0.0
+        if self._calibrated_actuation is not None:
+            self._calibrated_actuation.reset()
         if hasattr(self._actuator_model, "reset"):
             self._actuator_model.reset(0.0)
 
     def _measure_afresh(self) -> None:
         self._exact = exact = self._exact_state()
+        if self._encoder_offsets is not None:
+            exact = self._encoder_offsets(exact)
         self._measured = exact if self._sensor_reset is None else self._sensor_reset(exact)
 
     def _undo_step(self, before: tuple[float, float, float, float], diverged: Sequence[float]) -> None:
@@ -343,6 +370,42 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         self._qvel[self._pendulum_dof] = dalpha
         mujoco.mj_forward(self._model_ptr, self._data_ptr)
         self._measure_afresh()
+
+
+class CalibratedActuation:
+    """The voltage that reaches the motor `latency` control periods (a fraction allowed) after it
+    was commanded, through a dead zone of `deadzone` V: a command u acts as sign(u) max(|u| - deadzone,
+    0). A fractional latency f acts, averaged over a period, as (1 - f) of the latest due command
+    and f of the one before (as `calibration.fit.delayed_voltage`)."""
+
+    def __init__(self, latency: float, deadzone: float):
+        self.whole = int(math.floor(latency))
+        self.fraction = latency - self.whole
+        self.deadzone = deadzone
+        self.reset()
+
+    def reset(self, volts: float = 0.0) -> None:
+        """Forget earlier commands: 0 V until new ones are due."""
+        self._history = [volts] * (self.whole + 2)
+
+    def __call__(self, volts: float) -> float:
+        history = self._history
+        history.pop(0)
+        history.append(volts)
+        mixed = (1.0 - self.fraction) * history[-1 - self.whole] + self.fraction * history[-2 - self.whole]
+        return math.copysign(max(abs(mixed) - self.deadzone, 0.0), mixed)
+
+
+class PendulumEncoderOffset:
+    """What an encoder offset `offset` (rad; true angle = encoder angle + offset) makes of the exact
+    state: the pendulum's angle read `offset` low, wrapped."""
+
+    def __init__(self, offset: float):
+        self.offset = offset
+
+    def __call__(self, exact: Sequence[float]) -> tuple[float, float, float, float]:
+        theta, alpha, dtheta, dalpha = exact
+        return theta, wrap_angle(alpha - self.offset), dtheta, dalpha
 
 
 class ElementIds:
@@ -507,6 +570,9 @@ def make_physics(control_frequency: float = 250.0, parameters: Mapping[str, floa
     physics.model.opt.timestep = physics_timestep(control_frequency)
     if overrides:
         physics.set_parameters(overrides)
+    effects = params.effects_of(parameters)
+    if effects:
+        physics.set_calibrated_effects(effects, 1.0 / control_frequency)
     return physics
 
 

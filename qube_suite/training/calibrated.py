@@ -8,8 +8,11 @@
 randomization config: every estimated parameter drawn uniformly from its 95 %
 interval widened `WIDTH` times, and at least +-`MINIMUM_SPREAD` of the estimate
 (an interval only says how well one recording pins the value; a Qube warms up,
-its friction changes from run to run); the parameters a calibration does not
-estimate, and the sensor and actuator effects, as in the `sim2real` preset.
+its friction changes from run to run); the command delay from 0 to twice the
+calibration's latency where it measured one (a real Qube-Servo 2's 6 ms defeats
+`ppo:swingup_adaptive`, trained under delays of 0 or 1 step: docs/calibration.md);
+the parameters a calibration does not estimate, and the other sensor and actuator
+effects, as in the `sim2real` preset.
 `fine_tuning` says what a calibrated run starts from: the task's adaptive policy
 (`ppo:<task>_adaptive`, observation history included) with the hyperparameters of
 the PPO stage of its recipe (small exploration noise, small steps), or else the
@@ -58,6 +61,10 @@ def randomization_for(calibration: Calibration | str | os.PathLike, width: float
         spec["low"] = max(0.0, min(spec["low"], value * (1.0 - minimum_spread)))
         spec["high"] = max(spec["high"], value * (1.0 + minimum_spread))
         config["parameters"][name] = spec
+    latency = calibration.actuation.get("latency_seconds", 0.0)
+    if latency > 0.0:  # the Qube's measured latency at the centre, the preset's whole-step delays around it
+        config["effects"]["action_delay"] = {
+            "seconds": {"distribution": "uniform", "low": 0.0, "high": 2.0 * latency}}
     return config
 
 

@@ -1,0 +1,222 @@
+"""Recordings from any logger: the reader's refusals, the voltage-only fit on a known plant, and
+the calibration on recordings of a real Qube-Servo 2 (`../shared/real_qube/`, skipped if absent)."""
+
+import glob
+import os
+
+import numpy as np
+import pytest
+
+from qube_suite import calibration
+from qube_suite.calibration import fit, prediction, recordings
+from qube_suite.cli import main
+from qube_suite.domains import qube
+
+REAL_QUBE = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "real_qube")
+HEADER = "time,voltage,arm_angle,pendulum_angle"
+
+
+def write(path, rows, header=HEADER):
+    path.write_text(header + "\n" + "\n".join(",".join(f"{x:.9g}" for x in row) for row in rows) + "\n")
+    return str(path)
+
+
+def good_rows(seconds=3.0, period=0.004):
+    t = np.arange(0.0, seconds, period)
+    return np.column_stack([t, np.sin(2 * np.pi * t), 0.1 * np.sin(2 * np.pi * t), np.pi + 0 * t])
+
+
+def spoil(kind):
+    rows = good_rows()
+    if kind == "nan":
+        rows[10, 2] = np.nan
+    elif kind == "backwards":
+        rows[20, 0] = rows[18, 0]
+    elif kind == "gap":
+        rows[200:, 0] += 0.5
+    elif kind == "short":
+        rows = rows[:100]
+    elif kind == "arm":
+        rows[:, 2] *= 30.0
+    elif kind == "saturated":
+        rows[:, 1] = np.sign(rows[:, 1]) * 4.0
+    return rows
+
+
+@pytest.mark.parametrize("kind, words", [
+    ("nan", "not finite"), ("backwards", "does not increase"), ("gap", "not constant"),
+    ("short", "too short"), ("arm", "degrees, beyond"), ("saturated", "saturated")])
+def test_bad_recordings_get_one_line_naming_the_problem_and_nothing_is_written(kind, words, tmp_path, capsys):
+    path = write(tmp_path / f"{kind}.csv", spoil(kind))
+    with pytest.raises(ValueError, match=words) as error:
+        recordings.read(path)
+    assert "\n" not in str(error.value) and path in str(error.value)
+    out = tmp_path / "my_qube.yaml"
+    assert main(["calibrate", "--recording", path, "--out", str(out)]) != 0
+    assert words in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_missing_column_is_named(tmp_path):
+    path = write(tmp_path / "a.csv", good_rows()[:, :3], header="time,voltage,arm_angle")
+    with pytest.raises(ValueError, match="no column 'pendulum_angle'"):
+        recordings.read(path)
+
+
+def test_recordings_of_different_periods_are_not_fitted_together(tmp_path):
+    paths = [write(tmp_path / "a.csv", good_rows()), write(tmp_path / "b.csv", good_rows(period=0.002))]
+    with pytest.raises(ValueError, match="different sample periods"):
+        calibration.calibrate_recordings(paths)
+
+
+def test_conventions_and_npz_give_the_same_measurements(tmp_path):
+    rows = good_rows()
+    rows[:, 0] += 0.0004 * np.sin(np.arange(len(rows)))  # timestamps with jitter
+    reference = recordings.read(write(tmp_path / "a.csv", rows))
+    other = rows.copy()
+    other[:, 2] = -np.degrees(rows[:, 2])
+    other[:, 3] = np.degrees(rows[:, 3] - np.pi)
+    npz = tmp_path / "b.npz"
+    np.savez(npz, time=other[:, 0], voltage=other[:, 1], arm_angle=other[:, 2], pendulum_angle=other[:, 3])
+    converted = recordings.read(npz, conventions=recordings.Conventions(
+        degrees=True, pendulum_zero_hanging=True, arm_sign=-1))
+    assert reference.sample_time == pytest.approx(0.004, rel=1e-3)
+    from scipy.io import savemat
+
+    savemat(tmp_path / "c.mat", {"time": rows[:, 0], "voltage": rows[:, 1], "arm_angle": rows[:, 2],
+                                 "pendulum_angle": rows[:, 3]})
+    np.testing.assert_allclose(recordings.read(tmp_path / "c.mat").theta, reference.theta, atol=1e-12)
+    np.testing.assert_allclose(converted.theta, reference.theta, atol=1e-12)
+    np.testing.assert_allclose(np.cos(converted.alpha), np.cos(reference.alpha), atol=1e-12)
+
+
+def simulated_chirp(truth, latency, deadzone, seconds=8.0, rate=250.0):
+    """Angles of the simulated Qube with parameters `truth` under a chirp whose voltage acts `latency`
+    samples late through a dead zone of `deadzone` V."""
+    t = np.arange(0.0, seconds, 1.0 / rate)
+    voltage = 1.5 * np.sin(2 * np.pi * (6.0 - 0.35 * t) * t)
+    acting = fit.delayed_voltage(voltage, latency)
+    acting = np.sign(acting) * np.maximum(np.abs(acting) - deadzone, 0.0)
+    physics = qube.make_physics(rate, truth)
+    physics.reset_to([0.0, np.pi, 0.0, 0.0])
+    angles = []
+    for volts in acting:
+        angles.append(physics.true_state()[:2])
+        physics.set_voltage(float(volts))
+        physics.step(qube.substeps_per_control_period(rate))
+    angles = np.array(angles)
+    return np.column_stack([t, voltage, angles[:, 0], angles[:, 1]])
+
+
+def test_the_voltage_only_fit_recovers_a_known_simulated_qube(tmp_path):
+    truth = {"motor_torque_constant": 0.038, "motor_back_emf": 0.038, "rotor_inertia": 3e-5,
+             "pendulum_damping": 4e-6, "arm_damping": 5e-5, "pendulum_length": 0.125,
+             "cable_stiffness": 1.5e-3}
+    paths = [write(tmp_path / "chirp.csv", simulated_chirp(truth, latency=1.5, deadzone=0.05))]
+    found = calibration.calibrate_recordings(paths)
+    assert found.latency_steps == pytest.approx(1.5, abs=0.25)
+    for name in ("motor_torque_constant", "rotor_inertia", "pendulum_length", "cable_stiffness"):
+        assert found.parameters[name] == pytest.approx(truth[name], rel=0.05), name
+    assert found.actuation["voltage_deadzone"] == pytest.approx(0.05, abs=0.03)
+
+
+@pytest.mark.skipif(not os.path.isdir(REAL_QUBE),
+                    reason=f"recordings of a real Qube not found at {REAL_QUBE}")
+def test_calibrating_on_real_chirps_predicts_another_far_better_than_nominal(tmp_path):
+    chirps = sorted(glob.glob(os.path.join(REAL_QUBE, "qs2_chirp_*.csv")))
+    out = tmp_path / "real.yaml"
+    assert main(["calibrate", "--recording", chirps[0], chirps[5], "--out", str(out)]) == 0
+    found = calibration.load(out)
+    m = recordings.read(chirps[7])
+    samples = np.arange(len(m))
+    nominal = prediction.predict(m, {}, samples).rms_at_horizon
+    calibrated = prediction.predict(
+        m, found.parameters, samples, found.actuation["latency_seconds"] / m.sample_time,
+        (0.0, found.offsets["pendulum_encoder_offset"]),
+        voltage_deadzone=found.actuation["voltage_deadzone"],
+        cable_rest_angle=-found.offsets["arm_encoder_offset"]).rms_at_horizon
+    assert calibrated < 0.5 * nominal
+
+
+def test_the_suites_recordings_export_to_the_format(tmp_path):
+    from qube_suite import suite
+    from qube_suite.recording import Recorder
+
+    source = tmp_path / "run.jsonl"
+    environment = suite.load("qube", "swingup", task_kwargs={"random": 0},
+                             environment_kwargs={"time_limit": 3.0})
+    with Recorder(source, environment):
+        timestep = environment.reset(seed=0)
+        while not timestep.last():
+            timestep = environment.step([0.5 * np.sin(environment.physics.time() * 20.0)])
+    out = tmp_path / "run.csv"
+    assert main(["recording", "export", str(source), "--out", str(out)]) == 0
+    m = recordings.read(out)
+    assert m.sample_time == pytest.approx(1 / 250.0) and len(m) > 700
+
+
+def test_a_calibration_file_gives_the_simulation_its_latency_dead_zone_and_offsets(tmp_path):
+    from qube_suite import parameters
+    from qube_suite.calibration.calibration_file import Calibration
+
+    found = Calibration(parameters=parameters.resolve({"cable_stiffness": 2e-3}), intervals={}, metadata={},
+                        offsets={"arm_encoder_offset": -0.3, "pendulum_encoder_offset": 0.01},
+                        actuation={"latency_seconds": 0.006, "voltage_deadzone": 0.2})
+    path = found.save(tmp_path / "mine.yaml")
+    physics = qube.make_physics(250.0, path)
+    physics.reset_to([0.0, np.pi, 0.0, 0.0])
+    assert physics.pendulum_angle() == pytest.approx(np.pi - 0.01)
+    applied = []
+    for volts in (1.0, 1.0, 1.0, 0.1, 0.1, 0.1):
+        physics.set_voltage(volts)
+        applied.append(physics.applied_voltage())
+        physics.step(1)
+    # 1.5 periods late: nothing, half of the first command, then all of it; 0.1 V lies in the dead zone
+    np.testing.assert_allclose(applied, [0.0, 0.5 * 1.0 - 0.2, 0.8, 0.8, 0.55 - 0.2, 0.0], atol=1e-12)
+    physics.reset_to([0.0, np.pi, 0.0, 0.0])
+    for _ in range(2000):
+        physics.set_voltage(0.0)
+        physics.step(1)
+    assert physics.true_state()[0] > 0.1  # the cable pulls the arm towards its rest angle, 0.3 rad
+
+
+def test_the_shipped_real_qube_is_a_calibration_the_suite_simulates():
+    from qube_suite import parameters, suite
+
+    shipped = calibration.load(parameters.REAL_QUBE_SERVO2)
+    assert shipped.parameters["rotor_inertia"] > 5 * parameters.NOMINAL["rotor_inertia"]
+    environment = suite.load("qube", "swingup", domain_kwargs={"parameters": parameters.REAL_QUBE_SERVO2})
+    physics = environment.physics
+    assert physics.parameters["pendulum_length"] == shipped.parameters["pendulum_length"]
+    physics.set_voltage(1.0)
+    assert physics.applied_voltage() == 0.0  # 1.5 periods late
+    environment.close()
+
+
+def test_effects_of_a_calibration_without_actuation_are_its_offsets():
+    from qube_suite import parameters
+    from qube_suite.calibration.calibration_file import Calibration
+
+    old = Calibration(parameters=parameters.resolve(), intervals={}, metadata={}, latency_steps=1,
+                      offsets={"arm_encoder_offset": 0.05, "pendulum_encoder_offset": -0.002})
+    assert parameters.effects_of(old) == {"cable_rest_angle": -0.05, "pendulum_encoder_offset": -0.002}
+    assert parameters.effects_of({"pendulum_mass": 0.03}) == {}
+
+
+def test_one_recording_with_current_is_fitted_with_it(tmp_path):
+    truth = {"motor_resistance": 9.2, "pendulum_mass": 0.026, "cable_stiffness": 1.5e-3}
+    rate = 250.0
+    t = np.arange(0.0, 8.0, 1.0 / rate)
+    voltage = 1.5 * np.sin(2 * np.pi * (6.0 - 0.35 * t) * t)
+    physics = qube.make_physics(rate, truth)
+    physics.reset_to([0.0, np.pi, 0.0, 0.0])
+    rows = []
+    for k, volts in enumerate(voltage):
+        theta, alpha = physics.true_state()[:2]
+        rows.append((t[k], volts, theta, alpha, physics.motor_current()))  # of the interval before
+        physics.set_voltage(float(volts))
+        physics.step(qube.substeps_per_control_period(rate))
+    path = write(tmp_path / "with_current.csv", rows, header=HEADER + ",motor_current")
+    found = calibration.calibrate_recordings([path])
+    assert found.parameters["motor_resistance"] == pytest.approx(9.2, rel=0.03)
+    assert found.parameters["pendulum_mass"] == pytest.approx(0.026, rel=0.05)
