@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import gc
 import math
+import weakref
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -73,6 +74,10 @@ DEFAULT_RESET_VOLTAGE_LIMIT = 6.0
 
 DEFAULT_RESET_TIMEOUT = 30.0
 """Longest a reset may take (s of board time)."""
+
+MAX_RESET_TIMEOUT = 120.0
+"""Largest `reset_timeout` (s): a reset that cannot reach its start gives up (0 V, `ResetError`) within
+two minutes of driving, however it was set; unattended, a Qube is not driven for longer by a reset."""
 
 NEAR_GOAL = math.radians(30.0)
 """Starts within 30 degrees of upright are reached by swing-up and hold; within 30
@@ -123,27 +128,35 @@ class _FullCollectionsHeld:
     a process that has loaded MuJoCo and torch): longer than a sample, enough to trip the
     missed-sample stop or the watchdog. While any board drives, the oldest generation's
     threshold is raised out of reach (young generations, which are fast, still collect); when
-    the last one idles, the threshold comes back and a full collection runs while the motor is
-    off.
+    the last holder releases it, at the end of its episode, at its close, or when it is
+    garbage-collected or the interpreter exits without either, the threshold comes back and a
+    full collection runs while the motor is off.
     """
 
     def __init__(self):
-        self.holders: set[int] = set()
+        self.holders: dict[int, weakref.finalize] = {}
         self.threshold: int | None = None
 
     def hold(self, holder: object) -> None:
+        if id(holder) in self.holders:
+            return
         if not self.holders:
             young, middle, self.threshold = gc.get_threshold()
             gc.set_threshold(young, middle, 2**31 - 1)
-        self.holders.add(id(holder))
+        ending = self.holders[id(holder)] = weakref.finalize(holder, self._let_go, id(holder))
+        ending.atexit = False  # an exiting interpreter needs no collections back
 
     def release(self, holder: object) -> None:
-        if id(holder) not in self.holders:
-            return
-        self.holders.discard(id(holder))
-        if not self.holders:
+        ending = self.holders.get(id(holder))
+        if ending is not None:
+            ending()
+
+    def _let_go(self, key: int) -> None:
+        self.holders.pop(key, None)
+        if not self.holders and self.threshold is not None:
             young, middle, _ = gc.get_threshold()
             gc.set_threshold(young, middle, self.threshold)
+            self.threshold = None
             gc.collect()
 
 
@@ -227,6 +240,9 @@ class Physics(MeasuredState, control.Physics):
                              f"got {reset_voltage_limit}")
         if not (math.isfinite(reset_timeout) and reset_timeout > 0.0):
             raise ValueError(f"reset_timeout must be a positive number of seconds, got {reset_timeout}")
+        if reset_timeout > MAX_RESET_TIMEOUT:
+            raise ValueError(f"reset_timeout must be at most {MAX_RESET_TIMEOUT:g} s (MAX_RESET_TIMEOUT: a reset "
+                             f"that cannot reach its start must give up), got {reset_timeout:g}")
         self.device = device
         self.qube = QuanserWrapper(DEVICES[device], board, identifier, frequency=control_frequency,
                                    max_voltage=max_voltage, plant=plant, realtime=realtime)
@@ -402,6 +418,21 @@ class Physics(MeasuredState, control.Physics):
                 self.qube.idle()
         finally:
             FULL_COLLECTIONS.release(self)
+
+    def stop_motor(self) -> None:
+        """Write 0 V at once, while an episode drives (an action was refused); the watchdog disables the
+        amplifier if no valid action follows within its timeout."""
+        if self.qube.is_open and not self.qube.is_idle:
+            try:
+                self.qube.zero_voltage()
+            except BaseException as error:
+                self._stop_after(error)
+                raise
+
+    @property
+    def closed(self) -> bool:
+        """Whether `close()` released the board for good."""
+        return self._closed
 
     def drawable(self):
         """The simulated Qube put in the measured state with the LED's colour: a digital twin."""

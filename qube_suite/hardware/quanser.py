@@ -53,6 +53,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
+import signal
+import threading
 import weakref
 from collections.abc import Sequence
 from typing import Any, NoReturn
@@ -139,6 +141,13 @@ REST_CHECK_TIME = 0.2
 """With zero_encoders=True, open() zeroes the encoders only after no count moved by more than one from
 where it was over this long (s): a Qube at rest (a count may flicker at its edge), not one moving."""
 
+MAX_WATCHDOG_TIMEOUT = 0.5
+"""Largest `watchdog_timeout` (s). The watchdog is what stops the motor when the process driving it
+dies or hangs; a longer timeout would leave the motor driven for longer after that than the arm
+needs, from rest at 10 V, to swing from its centre to its 120 degree limit (about 0.5 s on the
+substitute's plant), so the motor could no longer be trusted to stop before the arm is stopped by
+its end."""
+
 AMPLIFIER_RANGE = 15.0
 """Largest `max_voltage` (V): the Qube's amplifier range, +-15 V (see `plant.py`)."""
 
@@ -186,6 +195,36 @@ def _real_number(name: str, value: Any) -> float:
     return float(value)
 
 
+def _unwind(signum: int, frame: Any) -> NoReturn:
+    raise SystemExit(128 + signum)
+
+
+class _TerminationUnwinds:
+    """While a board is open, SIGTERM (`kill`, a job scheduler, a closing session) raises SystemExit
+    (exit code 143) in the main thread, so that the program unwinds as after Ctrl-C and stops the
+    motor at once; Python's default would end the process on the spot, leaving the board to its
+    watchdog. Only where SIGTERM has its default action (a program's own handler is left alone); the
+    default comes back when the last board closes."""
+
+    def __init__(self):
+        self.open_boards: set[int] = set()
+
+    def hold(self, handle: object) -> None:
+        self.open_boards.add(id(handle))
+        if (threading.current_thread() is threading.main_thread()
+                and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL):
+            signal.signal(signal.SIGTERM, _unwind)
+
+    def release(self, handle: object) -> None:
+        self.open_boards.discard(id(handle))
+        if (not self.open_boards and threading.current_thread() is threading.main_thread()
+                and signal.getsignal(signal.SIGTERM) is _unwind):
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+TERMINATION_UNWINDS = _TerminationUnwinds()
+
+
 class _Handle:
     """What a finaliser needs to leave the board safe when its wrapper is collected or the
     interpreter exits: the board, the task and the channels, never the wrapper itself."""
@@ -211,22 +250,24 @@ class _Handle:
                 errors.append(error)
                 return None
 
-        if not attempt(board.watchdog_is_expired):  # an expired watchdog has already zeroed the outputs
-            attempt(board.write_analog, c["analog_outputs"], len(c["analog_outputs"]),
-                    np.zeros(len(c["analog_outputs"])))
-            attempt(board.write_digital, c["digital_outputs"], len(c["digital_outputs"]),
-                    np.zeros(len(c["digital_outputs"]), dtype=np.int8))
-            attempt(board.write_other, c["led_outputs"], len(c["led_outputs"]), np.array(LED_OFF_STATE))
-            if errors and attempt(board.watchdog_is_expired):
-                # It expired between the check and the writes, which it then refused: the outputs are
-                # at their expiration states (0 V, amplifier off), which is what the writes were for.
-                errors = [error for error in errors if isinstance(error, (KeyboardInterrupt, SystemExit))]
+        # The writes come first, whatever the board would answer to a query: an expired watchdog
+        # refuses them, its expiration states being 0 V and the amplifier off already.
+        attempt(board.write_analog, c["analog_outputs"], len(c["analog_outputs"]),
+                np.zeros(len(c["analog_outputs"])))
+        attempt(board.write_digital, c["digital_outputs"], len(c["digital_outputs"]),
+                np.zeros(len(c["digital_outputs"]), dtype=np.int8))
+        attempt(board.write_other, c["led_outputs"], len(c["led_outputs"]), np.array(LED_OFF_STATE))
+        if errors and attempt(board.watchdog_is_expired) is True:
+            # The writes were refused by an expired watchdog: the outputs are at their expiration
+            # states (0 V, amplifier off), which is what the writes were for.
+            errors = [error for error in errors if isinstance(error, (KeyboardInterrupt, SystemExit))]
         attempt(board.watchdog_stop)  # only after the outputs are zeroed
         if task is not None:
             attempt(board.task_stop, task)
             attempt(board.task_delete, task)
         attempt(board.close)
         self.task, self.open = None, False
+        attempt(TERMINATION_UNWINDS.release, self)
         return errors
 
 
@@ -274,6 +315,9 @@ class QuanserWrapper:
                             ("watchdog_timeout", watchdog_timeout)):
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be positive, got {value}")
+        if watchdog_timeout > MAX_WATCHDOG_TIMEOUT:
+            raise ValueError(f"watchdog_timeout must be at most {MAX_WATCHDOG_TIMEOUT:g} s (MAX_WATCHDOG_TIMEOUT: "
+                             f"longer leaves a dead process's motor driven too long), got {watchdog_timeout:g}")
         if max_voltage > AMPLIFIER_RANGE:
             raise ValueError(f"max_voltage must be at most the amplifier's {AMPLIFIER_RANGE:g} V, "
                              f"got {max_voltage}")
@@ -389,6 +433,7 @@ class QuanserWrapper:
                 "it open") from error
         handle = self._handle
         handle.board, handle.task, handle.open, self._idle = board, None, True, False
+        TERMINATION_UNWINDS.hold(handle)
         self.missed_samples, self.stall_warning, self._overflows_seen = 0, False, None
         self._last_counts = None
         c = self._channels
@@ -499,14 +544,16 @@ class QuanserWrapper:
         board = self._require_open()
         c = self._channels
         self._idle = True
-        try:
-            if not board.watchdog_is_expired():  # expired: the outputs are at 0 V, amplifier off
-                board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
-                board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
-                                    np.zeros(len(c["digital_outputs"]), dtype=np.int8))
-        except self._board_error as error:
-            if not board.watchdog_is_expired():  # it expired between the check and the writes: safe
-                raise BoardIOError(f"could not stop the motor: {error_text(error)}") from error
+        refused = None
+        for write, channels, zeros in (
+                (board.write_analog, c["analog_outputs"], self._zero_volts),
+                (board.write_digital, c["digital_outputs"], np.zeros(len(c["digital_outputs"]), dtype=np.int8))):
+            try:  # both writes, whatever a query would answer: nothing may skip them
+                write(channels, len(channels), zeros)
+            except self._board_error as error:
+                refused = refused or error
+        if refused is not None and board.watchdog_is_expired() is not True:
+            raise BoardIOError(f"could not stop the motor: {error_text(refused)}") from refused
         board.watchdog_stop()  # only now: until here the watchdog still guards the outputs
 
     def resume(self) -> None:
@@ -552,11 +599,15 @@ class QuanserWrapper:
             raise RuntimeError("the board is not open: use `with QubeServo2(...) as qube:` or call open()")
         return self._board
 
-    def _zero_voltage(self) -> None:
-        """Write 0 V unless an expired watchdog has already done so (and locked the outputs)."""
-        board = self._board
-        if not board.watchdog_is_expired():
+    def zero_voltage(self) -> None:
+        """Write 0 V now (the amplifier stays enabled, the watchdog running: the next `action` drives
+        again); what a refused action does. Refused only by an expired watchdog, which did it already."""
+        board = self._require_open()
+        try:
             board.write_analog(self._channels["analog_outputs"], len(self._zero_volts), self._zero_volts)
+        except self._board_error:
+            if board.watchdog_is_expired() is not True:
+                raise
 
     def _stop(self, error: HardwareError, cause: BaseException | None = None) -> NoReturn:
         """Stop driving (0 V, amplifier disabled, watchdog stopped: idle) and raise `error`."""
@@ -567,7 +618,7 @@ class QuanserWrapper:
         raise error from cause
 
     def _refuse(self, message: str) -> NoReturn:
-        self._zero_voltage()
+        self.zero_voltage()
         raise ValueError(message)
 
     def _checked_voltages(self, voltages) -> np.ndarray:

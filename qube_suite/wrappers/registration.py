@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import gymnasium
+from gymnasium.envs.registration import WrapperSpec
 
 from qube_suite import suite
 from qube_suite.arguments import check_keywords, keywords_of
@@ -58,6 +59,11 @@ and the test suite runs Gymnasium's full `check_env` on every id. `gymnasium.mak
 disable_env_checker=False)` still adds the checker."""
 
 
+HARDWARE_GUARD = WrapperSpec("StopMotorAtEpisodeEnd", "qube_suite.wrappers.gym_env:StopMotorAtEpisodeEnd", {})
+"""Wrapped around every hardware id, outside `gymnasium.make`'s own wrappers (its `TimeLimit`): the
+motor stops at once when one of them ends the episode or raises (`gym_env.StopMotorAtEpisodeEnd`)."""
+
+
 def register_environments() -> None:
     """Register every id of `GYMNASIUM_IDS` (for `gymnasium.make` and `gymnasium.make_vec`) and of
     `HARDWARE_GYMNASIUM_IDS` (`gymnasium.make`), once."""
@@ -68,4 +74,5 @@ def register_environments() -> None:
     for env_id, task in HARDWARE_GYMNASIUM_IDS.items():
         if env_id not in gymnasium.registry:
             gymnasium.register(env_id, entry_point=make_env, nondeterministic=True,
-                               kwargs={"task": task, "domain": "qube_hardware"}, **CHECKS_BUILT_IN)
+                               kwargs={"task": task, "domain": "qube_hardware"},
+                               additional_wrappers=(HARDWARE_GUARD,), **CHECKS_BUILT_IN)
