@@ -241,8 +241,8 @@ class Physics(MeasuredState, control.Physics):
         if not (math.isfinite(reset_timeout) and reset_timeout > 0.0):
             raise ValueError(f"reset_timeout must be a positive number of seconds, got {reset_timeout}")
         if reset_timeout > MAX_RESET_TIMEOUT:
-            raise ValueError(f"reset_timeout must be at most {MAX_RESET_TIMEOUT:g} s (MAX_RESET_TIMEOUT: a reset "
-                             f"that cannot reach its start must give up), got {reset_timeout:g}")
+            raise ValueError(f"reset_timeout must be at most {MAX_RESET_TIMEOUT:g} s (MAX_RESET_TIMEOUT: a "
+                             f"reset that cannot reach its start must give up), got {reset_timeout:g}")
         self.device = device
         self.qube = QuanserWrapper(DEVICES[device], board, identifier, frequency=control_frequency,
                                    max_voltage=max_voltage, plant=plant, realtime=realtime)

@@ -316,8 +316,9 @@ class QuanserWrapper:
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be positive, got {value}")
         if watchdog_timeout > MAX_WATCHDOG_TIMEOUT:
-            raise ValueError(f"watchdog_timeout must be at most {MAX_WATCHDOG_TIMEOUT:g} s (MAX_WATCHDOG_TIMEOUT: "
-                             f"longer leaves a dead process's motor driven too long), got {watchdog_timeout:g}")
+            raise ValueError(f"watchdog_timeout must be at most {MAX_WATCHDOG_TIMEOUT:g} s "
+                             "(MAX_WATCHDOG_TIMEOUT: longer leaves a dead process's motor driven too long), "
+                             f"got {watchdog_timeout:g}")
         if max_voltage > AMPLIFIER_RANGE:
             raise ValueError(f"max_voltage must be at most the amplifier's {AMPLIFIER_RANGE:g} V, "
                              f"got {max_voltage}")
@@ -545,9 +546,9 @@ class QuanserWrapper:
         c = self._channels
         self._idle = True
         refused = None
-        for write, channels, zeros in (
-                (board.write_analog, c["analog_outputs"], self._zero_volts),
-                (board.write_digital, c["digital_outputs"], np.zeros(len(c["digital_outputs"]), dtype=np.int8))):
+        amplifiers_off = np.zeros(len(c["digital_outputs"]), dtype=np.int8)
+        for write, channels, zeros in ((board.write_analog, c["analog_outputs"], self._zero_volts),
+                                       (board.write_digital, c["digital_outputs"], amplifiers_off)):
             try:  # both writes, whatever a query would answer: nothing may skip them
                 write(channels, len(channels), zeros)
             except self._board_error as error:
