@@ -99,6 +99,19 @@ swings too much for the swing-up: five time constants of the velocity filter, re
 woke, so that the decision is made on the Qube's present state; meanwhile dampen already brakes the
 arm (at 0 V an arm still turning fast from the last episode could coast past the arm limit)."""
 
+RETURN_SPEED = 1.0
+"""Arm speed (rad/s) at which a reset brings back an arm found beyond the board's arm limit."""
+
+RETURN_GAIN = 3.0
+"""Volts per rad/s of arm speed short of `RETURN_SPEED` while an arm is brought back: a held arm
+soon draws more than the wrapper's `RETURN_CURRENT`, which stops the return."""
+
+RETURN_DRIVE = 2.5
+"""Largest voltage (V) of the return, under the wrapper's `RETURN_VOLTAGE`."""
+
+RETURN_TARGET = math.radians(45.0)
+"""The return ends with the arm this close to its zero (rad); the reset controllers take over."""
+
 HOLD_TIME = 0.5
 """A reset is done when its condition has held this long (s)."""
 
@@ -369,7 +382,8 @@ class Physics(MeasuredState, control.Physics):
                 self.qube.resume()
             self._led_shown = None
             self._estimator.reset()  # the Qube moved on while the board idled: estimate it afresh
-            self._sample(0.0)
+            self._sample(0.0, returning=True)
+            self._return_arm()
             self._measured = self._estimate
         except BaseException as error:
             self._stop_after(error)
@@ -519,8 +533,9 @@ class Physics(MeasuredState, control.Physics):
         finally:
             FULL_COLLECTIONS.release(self)
 
-    def _sample(self, volts: float) -> None:
-        self.currents, self.encoders, self.others = self.qube.action(
+    def _sample(self, volts: float, returning: bool = False) -> None:
+        act = self.qube.return_arm if returning else self.qube.action
+        self.currents, self.encoders, self.others = act(
             [conventions.board_voltage(volts)], led=None if self._led == self._led_shown else self._led)
         self._led_shown = self._led  # written only when it changes: one board call less per sample
         limit = self.qube.max_voltage
@@ -528,6 +543,27 @@ class Physics(MeasuredState, control.Physics):
         theta, alpha, dtheta, dalpha = self._estimator(self.encoders).tolist()
         self._estimate = (theta, alpha, dtheta, dalpha)
         self._samples += 1
+
+    def _return_arm(self) -> None:
+        """Bring an arm found beyond the board's arm limit back to within `RETURN_TARGET` of its zero
+        at `RETURN_SPEED`, with at most `RETURN_DRIVE`: beyond the limit the voltage only pushes
+        inwards (0 V brakes through the motor's back-EMF), within it it may brake harder. The
+        wrapper's `return_arm` stops the motor if the arm is held or moves away."""
+        limit = self.qube.arm_limit
+        if limit is None or abs(self._estimate[0]) <= limit:
+            return
+        self._led = RESET_LED
+        for _ in range(round(self._reset_timeout * self._frequency)):
+            theta, _, dtheta, _ = self._estimate
+            if abs(theta) < RETURN_TARGET:
+                return
+            inward = -math.copysign(1.0, theta)
+            push = RETURN_GAIN * (RETURN_SPEED - inward * dtheta)
+            brake = 0.0 if abs(theta) > limit else -RETURN_DRIVE  # beyond the limit: inwards only
+            self._sample(inward * min(RETURN_DRIVE, max(brake, push)), returning=True)
+        self._sample(0.0, returning=True)
+        raise ResetError(f"reset failed: could not bring the arm back from beyond the arm limit within "
+                         f"{self._reset_timeout:g} s (state {np.round(self._estimate, 3).tolist()})")
 
     def _swinging(self, model) -> bool:
         """True if the pendulum moves fast or swings with more than `CALM_SWING_ENERGY` of the swing-up

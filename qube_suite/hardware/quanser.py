@@ -148,6 +148,23 @@ needs, from rest at 10 V, to swing from its centre to its 120 degree limit (abou
 substitute's plant), so the motor could no longer be trusted to stop before the arm is stopped by
 its end."""
 
+RETURN_VOLTAGE = 3.0
+"""Largest voltage (V) `return_arm` lets through while the arm is beyond `arm_limit`."""
+
+RETURN_CURRENT = 0.2
+"""Largest motor current (A) `return_arm` allows for longer than `RETURN_HELD_TIME` while the arm is
+beyond `arm_limit`: a free arm turning slowly draws a few tens of mA, a held one (the end of its
+travel, a tangled cable, a hand) what the voltage drives through the motor's 8.4 ohm, 0.36 A at
+`RETURN_VOLTAGE`."""
+
+RETURN_HELD_TIME = 0.1
+"""Seconds of current above `RETURN_CURRENT` that mean the arm is held: the current of a start from
+rest falls within a few ms, as the arm takes up speed."""
+
+RETURN_SLACK = math.radians(5.0)
+"""How much farther out (rad) than where `return_arm` found it the arm may get while beyond
+`arm_limit` (a swing's overshoot) before the return stops."""
+
 AMPLIFIER_RANGE = 15.0
 """Largest `max_voltage` (V): the Qube's amplifier range, +-15 V (see `plant.py`)."""
 
@@ -376,6 +393,8 @@ class QuanserWrapper:
         self._stall_at = [d.digital_inputs.index(c) for c in d.stall_error_inputs]
         self._arm_at = None if d.arm_encoder is None else d.encoder_inputs.index(d.arm_encoder)
         self._overflows_seen: int | None = None
+        self._return_from: float | None = None  # abs(arm angle) where return_arm() began beyond the limit
+        self._held_samples = 0  # samples in a row of return_arm() beyond the limit above RETURN_CURRENT
         self._last_counts: list[int] | None = None  # encoder counts of the last sample, for the glitch check
         self._board_error: type[Exception] = Exception  # the board's HILError class, set at open()
         self._handle = _Handle(self._channels)
@@ -506,6 +525,22 @@ class QuanserWrapper:
         units and signs. Raises ValueError after writing 0 V, or a `SafetyStopError` after
         stopping the motor (0 V, amplifier disabled: idle).
         """
+        return self._act(voltages, led, returning=False)
+
+    def return_arm(self, voltages: float | Sequence[float] | np.ndarray,
+                   led: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`action`, for bringing back an arm that is beyond `arm_limit` (where `action` stops).
+
+        While the arm is beyond the limit, each sample stops the motor with `ArmLimitError`
+        unless its voltage drives the arm towards its zero (or is 0) and is at most
+        `RETURN_VOLTAGE`, the motor current has not stayed above `RETURN_CURRENT` for
+        `RETURN_HELD_TIME` (the arm is held), and the arm is no more than `RETURN_SLACK` farther
+        out than where the return began. Within the limit it is `action`. The device's first
+        analog output drives the arm encoder's joint.
+        """
+        return self._act(voltages, led, returning=True)
+
+    def _act(self, voltages, led, returning: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         board = self._require_open()
         if self._idle:
             raise RuntimeError("the board is idle: call resume() before action()")
@@ -522,7 +557,7 @@ class QuanserWrapper:
         missed = self._check_missed_samples(board)
         self._check_amplifier()
         self._check_encoders(missed)
-        self._check_arm()
+        self._check_arm(volts[0], returning)
         try:
             board.write_analog(self._channels["analog_outputs"], len(volts), volts)
             if rgb is not None:
@@ -576,6 +611,7 @@ class QuanserWrapper:
             raise BoardIOError(f"could not resume driving: {error_text(error)}") from error
         self._idle = False
         self._last_counts = None  # the Qube may have moved while idle
+        self._return_from, self._held_samples = None, 0
 
     @property
     def is_idle(self) -> bool:
@@ -689,14 +725,31 @@ class QuanserWrapper:
                     "reference is lost; close the board, put the Qube at its start position (pendulum "
                     "hanging, arm centred) and open it again"))
 
-    def _check_arm(self) -> None:
+    def _check_arm(self, volts: float, returning: bool) -> None:
+        """Stop if the arm is beyond `arm_limit`, unless `returning` it by `return_arm`'s rules with
+        `volts` (board units) on the first analog output."""
         if self.arm_limit is None or self._arm_at is None:
             return
-        angle = abs(conventions.arm_angle(int(self._encoders[self._arm_at])))
-        if angle > self.arm_limit:
-            self._stop(ArmLimitError(
-                f"the arm is {math.degrees(angle):.0f} degrees from its zero (the centre), beyond "
-                f"arm_limit = {math.degrees(self.arm_limit):.0f} degrees"))
+        angle = conventions.arm_angle(int(self._encoders[self._arm_at]))
+        if abs(angle) <= self.arm_limit:
+            self._return_from, self._held_samples = None, 0
+            return
+        where = (f"the arm is {math.degrees(abs(angle)):.0f} degrees from its zero (the centre), beyond "
+                 f"arm_limit = {math.degrees(self.arm_limit):.0f} degrees")
+        if not returning:
+            self._stop(ArmLimitError(f"{where}; return_arm() may drive it back"))
+        if self._return_from is None:
+            self._return_from = abs(angle)
+        held = abs(float(self._currents[0])) > RETURN_CURRENT if len(self._currents) else False
+        self._held_samples = self._held_samples + 1 if held else 0
+        if conventions.ARM_SIGN * volts * angle > 0.0 or abs(volts) > RETURN_VOLTAGE:
+            self._stop(ArmLimitError(f"{where}: only at most {RETURN_VOLTAGE:g} V towards the centre may "
+                                     f"bring it back, not {conventions.ARM_SIGN * volts:g} V"))
+        if self._held_samples > RETURN_HELD_TIME * self.frequency:
+            self._stop(ArmLimitError(f"{where}, and it is held: the motor current stayed above "
+                                     f"{RETURN_CURRENT:g} A for {RETURN_HELD_TIME:g} s: free it"))
+        if abs(angle) > self._return_from + RETURN_SLACK:
+            self._stop(ArmLimitError(f"{where}, and moving away from the centre while being brought back"))
 
 
 class QubeServo2(QuanserWrapper):
