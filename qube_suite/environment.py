@@ -236,8 +236,8 @@ class Environment(control.Environment):
         return control.flatten_observation(observation) if self._flat_observation else observation
 
     def close(self) -> None:
-        """Release the domain: on hardware, stop the motor and close the board (a later reset opens
-        it again); a closed simulation cannot be used again."""
+        """Release the domain for good: on hardware, stop the motor and close the board; a closed
+        environment refuses to reset or step (RuntimeError)."""
         self._reset_next_step = True
         self._physics.close()
 

@@ -125,7 +125,11 @@ PENDULUM_REST_TOLERANCE = 1
 count (the bench's sway lets its Coulomb friction stop it within a count of hanging, where a count may
 flicker). More means its zero is lost. A reading of k counts puts the pendulum in [k, k + 1) counts (the
 encoder counts whole steps), so the readings -2 to 1 pass: a pendulum resting 1.2 counts below hanging
-reads -2."""
+reads -2. The default of `pendulum_rest_tolerance`."""
+
+MAX_PENDULUM_REST_TOLERANCE = 8
+"""Largest `pendulum_rest_tolerance` (counts, 1.4 degrees): beyond it a lost zero would pass unseen and
+the upright starts and balance tasks would lean by as much."""
 
 REST_CHECK_TIME = 0.2
 """The encoder check reads the pendulum, the dampen controller still driving, until its counts have
@@ -203,8 +207,12 @@ class Physics(MeasuredState, control.Physics):
         identifier: the board's number.
         check_encoders: at every reset, first settle the pendulum hanging, centre the arm to within
             `ARM_CENTRE_TOLERANCE` (5 degrees) and check that the pendulum, hanging at rest, reads
-            pi to within `PENDULUM_REST_TOLERANCE` (one count); else raise `EncoderCheckError`
+            pi to within `pendulum_rest_tolerance` counts; else raise `EncoderCheckError`
             (`ResetError` if the arm cannot be centred). Default True.
+        pendulum_rest_tolerance: counts from hanging that the encoder check lets pass (default
+            `PENDULUM_REST_TOLERANCE`, one; at most `MAX_PENDULUM_REST_TOLERANCE`): more for a bench
+            whose sway stops the pendulum farther from hanging (four times the substitute's default
+            sway leaves it 2 to 3 counts off).
         zero_encoders: zero the encoders at the board's first open, where the Qube rests (pendulum
             hanging, arm centred); default False: keep the board's counts, which a board counts
             from where the Qube was at power-up.
@@ -234,11 +242,19 @@ class Physics(MeasuredState, control.Physics):
                  max_voltage: float = 10.0, reset_voltage_limit: float = DEFAULT_RESET_VOLTAGE_LIMIT,
                  reset_timeout: float = DEFAULT_RESET_TIMEOUT, identifier: str = "0",
                  device: str | None = None, check_encoders: bool = True, zero_encoders: bool = False,
+                 pendulum_rest_tolerance: int = PENDULUM_REST_TOLERANCE,
                  parameters: Any = None, reset_controllers: Mapping[str, Any] | None = None):
         for name, flag in (("check_encoders", check_encoders), ("zero_encoders", zero_encoders)):
             if not isinstance(flag, bool):
                 raise TypeError(f"{name} must be True or False, got {flag!r}")
+        tolerance = pendulum_rest_tolerance
+        if isinstance(tolerance, bool) or not isinstance(tolerance, (int, np.integer)):
+            raise TypeError(f"pendulum_rest_tolerance must be a whole number of counts, got {tolerance!r}")
+        if not 0 <= tolerance <= MAX_PENDULUM_REST_TOLERANCE:
+            raise ValueError(f"pendulum_rest_tolerance must be in [0, {MAX_PENDULUM_REST_TOLERANCE}] counts, "
+                             f"got {tolerance}")
         self._check_encoders = check_encoders
+        self._rest_tolerance = int(pendulum_rest_tolerance)
         self._zero_at_open = zero_encoders
         if device is None:
             device = next((name for name, d in DEVICES.items() if d.board_type == board), "qube_servo2")
@@ -614,12 +630,13 @@ class Physics(MeasuredState, control.Physics):
             raise ResetError(f"reset failed: the pendulum did not come to rest for the encoder check within "
                              f"{self._reset_timeout:g} s (counts from hanging: {offsets[-5:]})")
         # an encoder reading of k counts puts the pendulum in [k, k + 1) counts: judge the count's centre
-        if abs(median + 0.5) > PENDULUM_REST_TOLERANCE + 0.5 + 1e-6:
+        if abs(median + 0.5) > self._rest_tolerance + 0.5 + 1e-6:
             raise EncoderCheckError(
                 f"the pendulum hangs at rest but its encoder reads {abs(median):.0f} counts from hanging (at "
-                f"most {PENDULUM_REST_TOLERANCE} allowed): its zero is lost. Close the environment, let the "
+                f"most {self._rest_tolerance} allowed): its zero is lost. Close the environment, let the "
                 "pendulum hang still, centre the arm and make a new one with domain_kwargs={'zero_encoders': "
-                "True}; domain_kwargs={'check_encoders': False} turns this check off")
+                "True}; on a swaying bench domain_kwargs={'pendulum_rest_tolerance': n} allows n counts, "
+                "and domain_kwargs={'check_encoders': False} turns this check off")
 
     @staticmethod
     def _centred_at_rest(state: tuple) -> bool:
