@@ -40,9 +40,11 @@ strictly here:
 from __future__ import annotations
 
 import enum
+import itertools
 import os
 import queue
 import threading
+import time
 
 import numpy as np
 
@@ -94,45 +96,46 @@ def _buffer(buffer, dtype, needed: int, kind: str, writable: bool) -> np.ndarray
     return buffer
 
 
-class _Reply(threading.Event):
-    """One call's reply, set by the carrier thread."""
-
-    value: tuple = ("bug", "no reply")
-
-
 class _Carrier:
     """A thread that carries a card's calls to the board and back: signal handlers run only in the
-    main thread, so none can cut a call in two and leave its reply for the next one."""
+    main thread, so none can cut a call in two. Each reply is filed under its call's number, so an
+    interrupted caller leaves nothing behind that a later call could take for its own."""
 
     def __init__(self, connection):
         self._connection = connection
+        self._calls = itertools.count()
         self._requests: queue.SimpleQueue = queue.SimpleQueue()
+        self._replies: dict[int, tuple] = {}
+        self._bell: queue.SimpleQueue = queue.SimpleQueue()  # rung once a reply is filed
         self._thread = threading.Thread(target=self._serve, name="hil-carrier", daemon=True)
         self._thread.start()
 
     def _serve(self) -> None:
         while True:
-            request, reply = self._requests.get()
+            number, request = self._requests.get()
             if request is None:
                 return
             try:
                 self._connection.send(request)
-                reply.value = self._connection.recv()
+                reply = self._connection.recv()
             except BaseException as error:  # the board process is gone: the caller sees why
-                reply.value = ("bug", f"{type(error).__name__}: {error}")
-            reply.set()
+                reply = ("bug", f"{type(error).__name__}: {error}")
+            self._replies[number] = reply
+            self._bell.put(number)
 
     def call(self, request: tuple) -> tuple:
         """The board's reply to `request`; an interrupt while waiting is raised after the reply came."""
-        reply = _Reply()
-        self._requests.put((request, reply))
+        number = next(self._calls)
+        self._requests.put((number, request))
         try:
-            reply.wait()
+            while number not in self._replies:
+                self._bell.get()
+            return self._replies.pop(number)
         except BaseException:
-            while not reply.wait(0.01):  # the call completes first, as a C call would
-                pass
+            while number not in self._replies:  # the call completes first, as a C call would
+                time.sleep(0.0001)
+            self._replies.pop(number)
             raise
-        return reply.value
 
     def stop(self) -> None:
         self._requests.put((None, None))
