@@ -141,9 +141,8 @@ def test_the_encoder_check_judges_the_pendulum_at_rest_not_one_reading():
 
 def test_a_swaying_bench_needs_a_wider_encoder_tolerance_which_is_an_option():
     plant = {"bench_vibration": 4 * 4.0e-5}                  # four times the substitute's sway
-    with load("swingup", plant=plant) as env:
-        with pytest.raises(EncoderCheckError, match="1 allowed"):   # the default: one count
-            env.reset()
+    with load("swingup", plant=plant) as env, pytest.raises(EncoderCheckError, match="1 allowed"):
+        env.reset()                                         # the default: one count
     with load("swingup", plant=plant, pendulum_rest_tolerance=3) as env:
         for _ in range(4):
             env.reset()
