@@ -32,6 +32,9 @@ What differs from the simulated domain, as on a real Qube:
   `dampen` and `swingup` (`set_reset_controllers`), designed for the Qube's own
   parameters (`reset_controller_settings()`), before the board samples. A start
   the controllers cannot reach within `reset_timeout` raises `ResetError`;
+* a reset that finds the arm beyond the board's arm limit (where an earlier run
+  stopped) first brings it back towards the centre, slowly, through the
+  wrapper's `return_arm` (`_return_arm`; docs/safety.md);
 * anything that raises during a step or a reset (a safety stop, a board error,
   Ctrl-C, a failing controller) first stops the motor: the board idles (0 V,
   amplifier disabled) and the next reset drives again, or, after an encoder

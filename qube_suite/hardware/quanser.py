@@ -28,7 +28,11 @@ reports them: raw board units and signs (`conventions.py` maps them to the
 package's angles and voltage; `estimation.StateEstimator` gives the state).
 Leaving, also after an exception or KeyboardInterrupt, writes 0 V, turns the LED
 red, disables the amplifier, stops the watchdog, stops and deletes the task and
-closes the board.
+closes the board; `idle()` and leaving write 0 V and the amplifier off whatever a
+board query answers (only an expired watchdog, which has done so already, refuses
+them). While a board is open, SIGTERM unwinds the program like Ctrl-C (exit code
+143) where its handler was Python's default. `watchdog_timeout` is at most
+`MAX_WATCHDOG_TIMEOUT` (0.15 s).
 
 Safety: voltages are clipped to +-`max_voltage`. NaN, inf, a wrong shape or a
 non-number, and an invalid LED colour, make the wrapper write 0 V and raise
@@ -44,7 +48,8 @@ encoder count that moved farther since the last sample than `max_encoder_speed`
 allows (`EncoderGlitchError`; the position reference is lost: close, put the Qube
 at its start position and open again), the arm farther than `arm_limit` from
 its zero (`ArmLimitError`; raised again after `resume()` and at the next open
-until the arm is back). A board that cannot be opened raises `BoardOpenError`. The
+until the arm is back: `return_arm()` may bring it back, towards the centre only,
+gently, and not against whatever holds it). A board that cannot be opened raises `BoardOpenError`. The
 stall warning (digital input 1) is reported by `stall_warning`.
 """
 
