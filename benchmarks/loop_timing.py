@@ -126,7 +126,8 @@ def summary(name: str, marks: np.ndarray, steal_file: str) -> str:
     starts = np.flatnonzero(periods > GAP * 1e3)
     gaps = [(returned[k], returned[k + 1]) for k in starts]
     return (f"{name:18s} {len(periods):6d} {np.median(work):7.2f} {np.percentile(work, 99):7.2f} "
-            f"{work.max():7.2f} {np.median(calls[1:]) * 1e3:7.2f} {np.median(periods):7.2f} {np.percentile(periods, 99):7.2f} "
+            f"{work.max():7.2f} {np.median(calls[1:]) * 1e3:7.2f} {np.median(periods):7.2f} "
+            f"{np.percentile(periods, 99):7.2f} "
             f"{periods.max():7.1f} {len(gaps):5d} {stolen(gaps, steal_file):7d}")
 
 
