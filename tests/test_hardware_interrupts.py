@@ -2,6 +2,7 @@
 amplifier off as soon as the interrupt surfaces, whatever a board query answered, and the board
 keeps working for a program that catches the interrupt and goes on (IPython, Jupyter)."""
 
+import contextlib
 import random
 import signal
 import time
@@ -12,7 +13,7 @@ from hil_helpers import fake_quanser_sdk
 from wall_clock import wall_clock_board_fixture  # noqa: F401
 
 from qube_suite import suite
-from qube_suite.hardware import QubeServo2
+from qube_suite.hardware import MissedSamplesError, QubeServo2, WatchdogExpiredError
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -157,8 +158,9 @@ def test_ctrl_c_caught_during_resets_leaves_the_wall_clock_board_off(wall_clock_
         for delay in random.Random(1).sample([0.05 * k for k in range(4, 60)], 6):
             signal.setitimer(signal.ITIMER_REAL, delay)
             try:                                               # what IPython and Jupyter do
-                while True:
-                    run_episodes(env, 1)
+                while True:     # a host loaded far beyond its cores may stop an episode safely: go on
+                    with contextlib.suppress(MissedSamplesError, WatchdogExpiredError):
+                        run_episodes(env, 1)
             except KeyboardInterrupt:
                 pass
             state = wall_clock_board.state()

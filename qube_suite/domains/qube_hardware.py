@@ -112,6 +112,10 @@ soon draws more than the wrapper's `RETURN_CURRENT`, which stops the return."""
 RETURN_DRIVE = 2.5
 """Largest voltage (V) of the return, under the wrapper's `RETURN_VOLTAGE`."""
 
+RETURN_MARGIN = math.radians(10.0)
+"""Within this much of the arm limit (rad) the return pushes only inwards, as beyond it: a sample may
+find the arm on the other side of the limit."""
+
 RETURN_TARGET = math.radians(45.0)
 """The return ends with the arm this close to its zero (rad); the reset controllers take over."""
 
@@ -566,23 +570,30 @@ class Physics(MeasuredState, control.Physics):
     def _return_arm(self) -> None:
         """Bring an arm found beyond the board's arm limit back to within `RETURN_TARGET` of its zero
         at `RETURN_SPEED`, with at most `RETURN_DRIVE`: beyond the limit the voltage only pushes
-        inwards (0 V brakes through the motor's back-EMF), within it it may brake harder. The
+        inwards, and only once the arm no longer coasts outwards (0 V brakes it through the motor's
+        back-EMF); within the limit it may brake harder. The
         wrapper's `return_arm` stops the motor if the arm is held or moves away."""
         limit = self.qube.arm_limit
-        if limit is None or abs(self._estimate[0]) <= limit:
+        if limit is None or abs(self._arm_unwrapped()) <= limit:
             return
         self._led = RESET_LED
         for _ in range(round(self._reset_timeout * self._frequency)):
-            theta, _, dtheta, _ = self._estimate
+            theta, dtheta = self._arm_unwrapped(), self._estimate[2]  # back the way it came
             if abs(theta) < RETURN_TARGET:
                 return
             inward = -math.copysign(1.0, theta)
-            push = RETURN_GAIN * (RETURN_SPEED - inward * dtheta)
-            brake = 0.0 if abs(theta) > limit else -RETURN_DRIVE  # beyond the limit: inwards only
+            near = abs(theta) > limit - RETURN_MARGIN  # the next sample may find it beyond the limit
+            coasting_out = near and inward * dtheta < 0.0  # 0 V brakes it first (back-EMF)
+            push = 0.0 if coasting_out else RETURN_GAIN * (RETURN_SPEED - inward * dtheta)
+            brake = 0.0 if near else -RETURN_DRIVE  # near or beyond the limit: inwards only
             self._sample(inward * min(RETURN_DRIVE, max(brake, push)), returning=True)
         self._sample(0.0, returning=True)
         raise ResetError(f"reset failed: could not bring the arm back from beyond the arm limit within "
                          f"{self._reset_timeout:g} s (state {np.round(self._estimate, 3).tolist()})")
+
+    def _arm_unwrapped(self) -> float:
+        """theta (rad) of the last sample, not wrapped: the way back to the centre is the way it came."""
+        return conventions.arm_angle(int(self.encoders[0]))
 
     def _swinging(self, model) -> bool:
         """True if the pendulum moves fast or swings with more than `CALM_SWING_ENERGY` of the swing-up

@@ -165,8 +165,8 @@ RETURN_HELD_TIME = 0.1
 rest falls within a few ms, as the arm takes up speed."""
 
 RETURN_SLACK = math.radians(5.0)
-"""How much farther out (rad) than where `return_arm` found it the arm may get while beyond
-`arm_limit` (a swing's overshoot) before the return stops."""
+"""How much farther out (rad) than at the last sample of 0 V the arm may get while `return_arm`
+pushes it inwards beyond `arm_limit` before the return stops (the motor would be driving it out)."""
 
 AMPLIFIER_RANGE = 15.0
 """Largest `max_voltage` (V): the Qube's amplifier range, +-15 V (see `plant.py`)."""
@@ -538,7 +538,8 @@ class QuanserWrapper:
         unless its voltage drives the arm towards its zero (or is 0) and is at most
         `RETURN_VOLTAGE`, the motor current has not stayed above `RETURN_CURRENT` for
         `RETURN_HELD_TIME` (the arm is held), and the arm is no more than `RETURN_SLACK` farther
-        out than where the return began. Within the limit it is `action`. The device's first
+        out than it was at the last sample of 0 V (an arm still coasting outwards at 0 V is
+        braked by the motor's back-EMF, not driven). Within the limit it is `action`. The device's first
         analog output drives the arm encoder's joint.
         """
         return self._act(voltages, led, returning=True)
@@ -741,8 +742,8 @@ class QuanserWrapper:
                  f"arm_limit = {math.degrees(self.arm_limit):.0f} degrees")
         if not returning:
             self._stop(ArmLimitError(f"{where}; return_arm() may drive it back"))
-        if self._return_from is None:
-            self._return_from = abs(angle)
+        if self._return_from is None or volts == 0.0:  # coasting out at 0 V is not the motor's doing
+            self._return_from = max(self._return_from or 0.0, abs(angle))
         held = abs(float(self._currents[0])) > RETURN_CURRENT if len(self._currents) else False
         self._held_samples = self._held_samples + 1 if held else 0
         if conventions.ARM_SIGN * volts * angle > 0.0 or abs(volts) > RETURN_VOLTAGE:
