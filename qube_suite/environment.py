@@ -59,8 +59,11 @@ class Environment(control.Environment):
       effects from the task's random state (`randomization_sample`);
     * `reset(seed=s)` reseeds the task's random state first (same seed, same
       episode), as Gymnasium's `reset(seed=...)` does;
-    * after `close()` the next `step` starts a new episode: on hardware that opens the board
-      again; the simulated domain refuses (RuntimeError) and cannot be pickled (TypeError);
+    * a refused action on hardware first writes 0 V (the next valid action drives again; without
+      one, the board's watchdog disables the amplifier), and any other exception in a step or a
+      reset stops the motor (0 V, amplifier off) before it propagates;
+    * after `close()` both domains refuse to run (RuntimeError): a closed hardware environment has
+      released its board for good, a closed simulation its model; neither can be pickled (TypeError);
     * objects in `observers` are told of every episode start and step (e.g. a
       `qube_suite.recording.Recorder`): `episode_started(environment)` and
       `step_done(environment, action, reward, discount)`, discount None while the
@@ -183,7 +186,14 @@ class Environment(control.Environment):
         either, the next `step` resets. A bad action raises ValueError and changes nothing.
         """
         physics, task = self._physics, self._task
-        task.before_step(action, physics)
+        try:
+            task.before_step(action, physics)
+        except ValueError:
+            physics.stop_motor()  # on hardware: the last voltage does not stay on while the error rises
+            raise
+        except BaseException:
+            self.stop_episode()
+            raise
         try:
             physics.step(self._n_sub_steps)
             return self._finish_step(action)
@@ -227,8 +237,8 @@ class Environment(control.Environment):
         return control.flatten_observation(observation) if self._flat_observation else observation
 
     def close(self) -> None:
-        """Release the domain: on hardware, stop the motor and close the board (a later reset opens
-        it again); a closed simulation cannot be used again."""
+        """Release the domain for good: on hardware, stop the motor and close the board; a closed
+        environment refuses to reset or step (RuntimeError)."""
         self._reset_next_step = True
         self._physics.close()
 

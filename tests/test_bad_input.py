@@ -86,7 +86,7 @@ def test_refused_vector_action_changes_nothing_in_any_world(actions):
 
 
 @pytest.mark.parametrize("action", [np.array([np.nan]), np.zeros(2), "1.0", None])
-def test_refused_action_on_hardware_never_reaches_the_board(action):
+def test_refused_action_on_hardware_never_reaches_the_board_and_zeroes_the_motor(action):
     with suite.load("qube_hardware", "swingup", task_kwargs={"random": 0},
                     environment_kwargs={"time_limit": 0.2}) as env:
         env.reset()
@@ -96,7 +96,8 @@ def test_refused_action_on_hardware_never_reaches_the_board(action):
         with pytest.raises(ValueError):
             env.step(action)
         after = (board.time, board.applied_voltage, env.step_count, board.true_state())
-        assert after[:3] == before[:3]
+        assert after[0] == before[0] and after[2] == before[2]          # no sample read, no step taken
+        assert after[1] == 0.0                                          # but the last voltage is off
         np.testing.assert_array_equal(after[3], before[3])
         assert env.step(np.array([1.0])).mid()
 

@@ -77,7 +77,7 @@ def test_encoder_glitch_is_caught_by_the_plausibility_check():
 
 
 def test_encoder_check_allows_for_missed_samples_and_can_be_turned_off():
-    with QubeServo2(max_missed_samples=None, watchdog_timeout=1.0) as qube:
+    with QubeServo2(max_missed_samples=None, watchdog_timeout=0.15) as qube:
         qube.action(0.0)
         qube.board.set_true_state([0.0, math.pi + 1.5, 0.0, 0.0])    # a real move of 1.5 rad ...
         qube.board.stall(0.02)                                         # ... over 6 samples: 250 rad/s

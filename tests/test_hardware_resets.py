@@ -137,3 +137,19 @@ def test_the_encoder_check_judges_the_pendulum_at_rest_not_one_reading():
     with load("swingup", plant={"bench_vibration": 8e-5}) as env:
         for _ in range(12):
             env.reset()  # raised EncoderCheckError with a zero that is right
+
+
+def test_a_swaying_bench_needs_a_wider_encoder_tolerance_which_is_an_option():
+    plant = {"bench_vibration": 4 * 4.0e-5}                  # four times the substitute's sway
+    with load("swingup", plant=plant) as env, pytest.raises(EncoderCheckError, match="1 allowed"):
+        env.reset()                                         # the default: one count
+    with load("swingup", plant=plant, pendulum_rest_tolerance=3) as env:
+        for _ in range(4):
+            env.reset()
+
+
+@pytest.mark.parametrize("tolerance, error", [(9, ValueError), (-1, ValueError), (1.5, TypeError),
+                                              (True, TypeError)])
+def test_the_encoder_tolerance_is_a_few_whole_counts(tolerance, error):
+    with pytest.raises(error, match="pendulum_rest_tolerance"):
+        load("swingup", pendulum_rest_tolerance=tolerance)

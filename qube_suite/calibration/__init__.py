@@ -43,8 +43,14 @@ def calibrate(domain: str = "qube_hardware", domain_kwargs: Mapping[str, Any] | 
     `seconds` (at most 60) and calibrate from it.
 
     `recording`: where to record the experiment (None: a new temporary file, named in the result's
-    metadata). Raises ValueError if the recording cannot be calibrated from (see `measurements.load`).
+    metadata). Raises ValueError before the Qube moves for a duration the fit cannot use (under
+    `measurements.MIN_SECONDS`, or over 60 s), and after it if the recording cannot be calibrated from
+    (see `measurements.load`).
     """
+    if not measurements.MIN_SECONDS <= seconds <= experiment.MAX_SECONDS:
+        raise ValueError(f"seconds must be in [{measurements.MIN_SECONDS:g}, {experiment.MAX_SECONDS:g}]: "
+                         f"calibration needs at least {measurements.MIN_SECONDS:g} s of experiment, "
+                         f"got {seconds!r}")
     if recording is None:
         recording = os.path.join(tempfile.mkdtemp(prefix="qube_calibration_"), "experiment.jsonl")
     experiment.run(recording, domain, domain_kwargs, seconds, seed)

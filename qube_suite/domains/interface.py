@@ -77,6 +77,9 @@ class QubePhysics(Protocol):
     def end_episode(self) -> None:
         """The episode is over: hardware stops driving the motor until the next reset."""
 
+    def stop_motor(self) -> None:
+        """An action was refused: hardware writes 0 V at once (the next valid step drives again)."""
+
     def drawable(self):
         """A MuJoCo physics (`domains.qube.Physics`) showing the Qube's state and LED, for rendering."""
 

@@ -301,6 +301,9 @@ class Physics(MeasuredState, dm_mujoco.Physics):
     def end_episode(self) -> None:
         """Nothing to stop in simulation."""
 
+    def stop_motor(self) -> None:
+        """Nothing to stop in simulation: time stands still between steps."""
+
     def forward(self) -> None:
         """Recompute derived quantities after the state was changed directly, then measure."""
         super().forward()

@@ -32,6 +32,9 @@ What differs from the simulated domain, as on a real Qube:
   `dampen` and `swingup` (`set_reset_controllers`), designed for the Qube's own
   parameters (`reset_controller_settings()`), before the board samples. A start
   the controllers cannot reach within `reset_timeout` raises `ResetError`;
+* a reset that finds the arm beyond the board's arm limit (where an earlier run
+  stopped) first brings it back towards the centre, slowly, through the
+  wrapper's `return_arm` (`_return_arm`; docs/safety.md);
 * anything that raises during a step or a reset (a safety stop, a board error,
   Ctrl-C, a failing controller) first stops the motor: the board idles (0 V,
   amplifier disabled) and the next reset drives again, or, after an encoder
@@ -43,6 +46,7 @@ from __future__ import annotations
 
 import gc
 import math
+import weakref
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -74,6 +78,10 @@ DEFAULT_RESET_VOLTAGE_LIMIT = 6.0
 DEFAULT_RESET_TIMEOUT = 30.0
 """Longest a reset may take (s of board time)."""
 
+MAX_RESET_TIMEOUT = 120.0
+"""Largest `reset_timeout` (s): a reset that cannot reach its start gives up (0 V, `ResetError`) within
+two minutes of driving, however it was set; unattended, a Qube is not driven for longer by a reset."""
+
 NEAR_GOAL = math.radians(30.0)
 """Starts within 30 degrees of upright are reached by swing-up and hold; within 30
 degrees of hanging, by settling; others by pumping energy."""
@@ -94,6 +102,23 @@ swings too much for the swing-up: five time constants of the velocity filter, re
 woke, so that the decision is made on the Qube's present state; meanwhile dampen already brakes the
 arm (at 0 V an arm still turning fast from the last episode could coast past the arm limit)."""
 
+RETURN_SPEED = 1.0
+"""Arm speed (rad/s) at which a reset brings back an arm found beyond the board's arm limit."""
+
+RETURN_GAIN = 3.0
+"""Volts per rad/s of arm speed short of `RETURN_SPEED` while an arm is brought back: a held arm
+soon draws more than the wrapper's `RETURN_CURRENT`, which stops the return."""
+
+RETURN_DRIVE = 2.5
+"""Largest voltage (V) of the return, under the wrapper's `RETURN_VOLTAGE`."""
+
+RETURN_MARGIN = math.radians(10.0)
+"""Within this much of the arm limit (rad) the return pushes only inwards, as beyond it: a sample may
+find the arm on the other side of the limit."""
+
+RETURN_TARGET = math.radians(45.0)
+"""The return ends with the arm this close to its zero (rad); the reset controllers take over."""
+
 HOLD_TIME = 0.5
 """A reset is done when its condition has held this long (s)."""
 
@@ -107,7 +132,11 @@ PENDULUM_REST_TOLERANCE = 1
 count (the bench's sway lets its Coulomb friction stop it within a count of hanging, where a count may
 flicker). More means its zero is lost. A reading of k counts puts the pendulum in [k, k + 1) counts (the
 encoder counts whole steps), so the readings -2 to 1 pass: a pendulum resting 1.2 counts below hanging
-reads -2."""
+reads -2. The default of `pendulum_rest_tolerance`."""
+
+MAX_PENDULUM_REST_TOLERANCE = 8
+"""Largest `pendulum_rest_tolerance` (counts, 1.4 degrees): beyond it a lost zero would pass unseen and
+the upright starts and balance tasks would lean by as much."""
 
 REST_CHECK_TIME = 0.2
 """The encoder check reads the pendulum, the dampen controller still driving, until its counts have
@@ -123,27 +152,35 @@ class _FullCollectionsHeld:
     a process that has loaded MuJoCo and torch): longer than a sample, enough to trip the
     missed-sample stop or the watchdog. While any board drives, the oldest generation's
     threshold is raised out of reach (young generations, which are fast, still collect); when
-    the last one idles, the threshold comes back and a full collection runs while the motor is
-    off.
+    the last holder releases it, at the end of its episode, at its close, or when it is
+    garbage-collected or the interpreter exits without either, the threshold comes back and a
+    full collection runs while the motor is off.
     """
 
     def __init__(self):
-        self.holders: set[int] = set()
+        self.holders: dict[int, weakref.finalize] = {}
         self.threshold: int | None = None
 
     def hold(self, holder: object) -> None:
+        if id(holder) in self.holders:
+            return
         if not self.holders:
             young, middle, self.threshold = gc.get_threshold()
             gc.set_threshold(young, middle, 2**31 - 1)
-        self.holders.add(id(holder))
+        ending = self.holders[id(holder)] = weakref.finalize(holder, self._let_go, id(holder))
+        ending.atexit = False  # an exiting interpreter needs no collections back
 
     def release(self, holder: object) -> None:
-        if id(holder) not in self.holders:
-            return
-        self.holders.discard(id(holder))
-        if not self.holders:
+        ending = self.holders.get(id(holder))
+        if ending is not None:
+            ending()
+
+    def _let_go(self, key: int) -> None:
+        self.holders.pop(key, None)
+        if not self.holders and self.threshold is not None:
             young, middle, _ = gc.get_threshold()
             gc.set_threshold(young, middle, self.threshold)
+            self.threshold = None
             gc.collect()
 
 
@@ -177,8 +214,12 @@ class Physics(MeasuredState, control.Physics):
         identifier: the board's number.
         check_encoders: at every reset, first settle the pendulum hanging, centre the arm to within
             `ARM_CENTRE_TOLERANCE` (5 degrees) and check that the pendulum, hanging at rest, reads
-            pi to within `PENDULUM_REST_TOLERANCE` (one count); else raise `EncoderCheckError`
+            pi to within `pendulum_rest_tolerance` counts; else raise `EncoderCheckError`
             (`ResetError` if the arm cannot be centred). Default True.
+        pendulum_rest_tolerance: counts from hanging that the encoder check lets pass (default
+            `PENDULUM_REST_TOLERANCE`, one; at most `MAX_PENDULUM_REST_TOLERANCE`): more for a bench
+            whose sway stops the pendulum farther from hanging (four times the substitute's default
+            sway leaves it 2 to 3 counts off).
         zero_encoders: zero the encoders at the board's first open, where the Qube rests (pendulum
             hanging, arm centred); default False: keep the board's counts, which a board counts
             from where the Qube was at power-up.
@@ -208,11 +249,19 @@ class Physics(MeasuredState, control.Physics):
                  max_voltage: float = 10.0, reset_voltage_limit: float = DEFAULT_RESET_VOLTAGE_LIMIT,
                  reset_timeout: float = DEFAULT_RESET_TIMEOUT, identifier: str = "0",
                  device: str | None = None, check_encoders: bool = True, zero_encoders: bool = False,
+                 pendulum_rest_tolerance: int = PENDULUM_REST_TOLERANCE,
                  parameters: Any = None, reset_controllers: Mapping[str, Any] | None = None):
         for name, flag in (("check_encoders", check_encoders), ("zero_encoders", zero_encoders)):
             if not isinstance(flag, bool):
                 raise TypeError(f"{name} must be True or False, got {flag!r}")
+        tolerance = pendulum_rest_tolerance
+        if isinstance(tolerance, bool) or not isinstance(tolerance, (int, np.integer)):
+            raise TypeError(f"pendulum_rest_tolerance must be a whole number of counts, got {tolerance!r}")
+        if not 0 <= tolerance <= MAX_PENDULUM_REST_TOLERANCE:
+            raise ValueError(f"pendulum_rest_tolerance must be in [0, {MAX_PENDULUM_REST_TOLERANCE}] counts, "
+                             f"got {tolerance}")
         self._check_encoders = check_encoders
+        self._rest_tolerance = int(pendulum_rest_tolerance)
         self._zero_at_open = zero_encoders
         if device is None:
             device = next((name for name, d in DEVICES.items() if d.board_type == board), "qube_servo2")
@@ -227,6 +276,9 @@ class Physics(MeasuredState, control.Physics):
                              f"got {reset_voltage_limit}")
         if not (math.isfinite(reset_timeout) and reset_timeout > 0.0):
             raise ValueError(f"reset_timeout must be a positive number of seconds, got {reset_timeout}")
+        if reset_timeout > MAX_RESET_TIMEOUT:
+            raise ValueError(f"reset_timeout must be at most {MAX_RESET_TIMEOUT:g} s (MAX_RESET_TIMEOUT: a "
+                             f"reset that cannot reach its start must give up), got {reset_timeout:g}")
         self.device = device
         self.qube = QuanserWrapper(DEVICES[device], board, identifier, frequency=control_frequency,
                                    max_voltage=max_voltage, plant=plant, realtime=realtime)
@@ -353,7 +405,8 @@ class Physics(MeasuredState, control.Physics):
                 self.qube.resume()
             self._led_shown = None
             self._estimator.reset()  # the Qube moved on while the board idled: estimate it afresh
-            self._sample(0.0)
+            self._sample(0.0, returning=True)
+            self._return_arm()
             self._measured = self._estimate
         except BaseException as error:
             self._stop_after(error)
@@ -402,6 +455,21 @@ class Physics(MeasuredState, control.Physics):
                 self.qube.idle()
         finally:
             FULL_COLLECTIONS.release(self)
+
+    def stop_motor(self) -> None:
+        """Write 0 V at once, while an episode drives (an action was refused); the watchdog disables the
+        amplifier if no valid action follows within its timeout."""
+        if self.qube.is_open and not self.qube.is_idle:
+            try:
+                self.qube.zero_voltage()
+            except BaseException as error:
+                self._stop_after(error)
+                raise
+
+    @property
+    def closed(self) -> bool:
+        """Whether `close()` released the board for good."""
+        return self._closed
 
     def drawable(self):
         """The simulated Qube put in the measured state with the LED's colour: a digital twin."""
@@ -488,8 +556,9 @@ class Physics(MeasuredState, control.Physics):
         finally:
             FULL_COLLECTIONS.release(self)
 
-    def _sample(self, volts: float) -> None:
-        self.currents, self.encoders, self.others = self.qube.action(
+    def _sample(self, volts: float, returning: bool = False) -> None:
+        act = self.qube.return_arm if returning else self.qube.action
+        self.currents, self.encoders, self.others = act(
             [conventions.board_voltage(volts)], led=None if self._led == self._led_shown else self._led)
         self._led_shown = self._led  # written only when it changes: one board call less per sample
         limit = self.qube.max_voltage
@@ -497,6 +566,34 @@ class Physics(MeasuredState, control.Physics):
         theta, alpha, dtheta, dalpha = self._estimator(self.encoders).tolist()
         self._estimate = (theta, alpha, dtheta, dalpha)
         self._samples += 1
+
+    def _return_arm(self) -> None:
+        """Bring an arm found beyond the board's arm limit back to within `RETURN_TARGET` of its zero
+        at `RETURN_SPEED`, with at most `RETURN_DRIVE`: beyond the limit the voltage only pushes
+        inwards, and only once the arm no longer coasts outwards (0 V brakes it through the motor's
+        back-EMF); within the limit it may brake harder. The
+        wrapper's `return_arm` stops the motor if the arm is held or moves away."""
+        limit = self.qube.arm_limit
+        if limit is None or abs(self._arm_unwrapped()) <= limit:
+            return
+        self._led = RESET_LED
+        for _ in range(round(self._reset_timeout * self._frequency)):
+            theta, dtheta = self._arm_unwrapped(), self._estimate[2]  # back the way it came
+            if abs(theta) < RETURN_TARGET:
+                return
+            inward = -math.copysign(1.0, theta)
+            near = abs(theta) > limit - RETURN_MARGIN  # the next sample may find it beyond the limit
+            coasting_out = near and inward * dtheta < 0.0  # 0 V brakes it first (back-EMF)
+            push = 0.0 if coasting_out else RETURN_GAIN * (RETURN_SPEED - inward * dtheta)
+            brake = 0.0 if near else -RETURN_DRIVE  # near or beyond the limit: inwards only
+            self._sample(inward * min(RETURN_DRIVE, max(brake, push)), returning=True)
+        self._sample(0.0, returning=True)
+        raise ResetError(f"reset failed: could not bring the arm back from beyond the arm limit within "
+                         f"{self._reset_timeout:g} s (state {np.round(self._estimate, 3).tolist()})")
+
+    def _arm_unwrapped(self) -> float:
+        """theta (rad) of the last sample, not wrapped: the way back to the centre is the way it came."""
+        return conventions.arm_angle(int(self.encoders[0]))
 
     def _swinging(self, model) -> bool:
         """True if the pendulum moves fast or swings with more than `CALM_SWING_ENERGY` of the swing-up
@@ -547,12 +644,13 @@ class Physics(MeasuredState, control.Physics):
             raise ResetError(f"reset failed: the pendulum did not come to rest for the encoder check within "
                              f"{self._reset_timeout:g} s (counts from hanging: {offsets[-5:]})")
         # an encoder reading of k counts puts the pendulum in [k, k + 1) counts: judge the count's centre
-        if abs(median + 0.5) > PENDULUM_REST_TOLERANCE + 0.5 + 1e-6:
+        if abs(median + 0.5) > self._rest_tolerance + 0.5 + 1e-6:
             raise EncoderCheckError(
                 f"the pendulum hangs at rest but its encoder reads {abs(median):.0f} counts from hanging (at "
-                f"most {PENDULUM_REST_TOLERANCE} allowed): its zero is lost. Close the environment, let the "
+                f"most {self._rest_tolerance} allowed): its zero is lost. Close the environment, let the "
                 "pendulum hang still, centre the arm and make a new one with domain_kwargs={'zero_encoders': "
-                "True}; domain_kwargs={'check_encoders': False} turns this check off")
+                "True}; on a swaying bench domain_kwargs={'pendulum_rest_tolerance': n} allows n counts, "
+                "and domain_kwargs={'check_encoders': False} turns this check off")
 
     @staticmethod
     def _centred_at_rest(state: tuple) -> bool:

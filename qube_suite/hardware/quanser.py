@@ -28,7 +28,11 @@ reports them: raw board units and signs (`conventions.py` maps them to the
 package's angles and voltage; `estimation.StateEstimator` gives the state).
 Leaving, also after an exception or KeyboardInterrupt, writes 0 V, turns the LED
 red, disables the amplifier, stops the watchdog, stops and deletes the task and
-closes the board.
+closes the board; `idle()` and leaving write 0 V and the amplifier off whatever a
+board query answers (only an expired watchdog, which has done so already, refuses
+them). While a board is open, SIGTERM unwinds the program like Ctrl-C (exit code
+143) where its handler was Python's default. `watchdog_timeout` is at most
+`MAX_WATCHDOG_TIMEOUT` (0.15 s).
 
 Safety: voltages are clipped to +-`max_voltage`. NaN, inf, a wrong shape or a
 non-number, and an invalid LED colour, make the wrapper write 0 V and raise
@@ -44,7 +48,8 @@ encoder count that moved farther since the last sample than `max_encoder_speed`
 allows (`EncoderGlitchError`; the position reference is lost: close, put the Qube
 at its start position and open again), the arm farther than `arm_limit` from
 its zero (`ArmLimitError`; raised again after `resume()` and at the next open
-until the arm is back). A board that cannot be opened raises `BoardOpenError`. The
+until the arm is back: `return_arm()` may bring it back, towards the centre only,
+gently, and not against whatever holds it). A board that cannot be opened raises `BoardOpenError`. The
 stall warning (digital input 1) is reported by `stall_warning`.
 """
 
@@ -53,6 +58,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
+import signal
+import threading
 import weakref
 from collections.abc import Sequence
 from typing import Any, NoReturn
@@ -139,6 +146,28 @@ REST_CHECK_TIME = 0.2
 """With zero_encoders=True, open() zeroes the encoders only after no count moved by more than one from
 where it was over this long (s): a Qube at rest (a count may flicker at its edge), not one moving."""
 
+MAX_WATCHDOG_TIMEOUT = 0.15
+"""Largest `watchdog_timeout` (s). The watchdog is what stops the motor when the process driving it
+dies or hangs; it must expire before an arm driven from rest at its centre reaches the 120 degree
+arm limit: 0.16 s at 10 V on the substitute's plant (0.23 s at 5 V, 0.37 s at 2 V)."""
+
+RETURN_VOLTAGE = 3.0
+"""Largest voltage (V) `return_arm` lets through while the arm is beyond `arm_limit`."""
+
+RETURN_CURRENT = 0.2
+"""Largest motor current (A) `return_arm` allows for longer than `RETURN_HELD_TIME` while the arm is
+beyond `arm_limit`: a free arm turning slowly draws a few tens of mA, a held one (the end of its
+travel, a tangled cable, a hand) what the voltage drives through the motor's 8.4 ohm, 0.36 A at
+`RETURN_VOLTAGE`."""
+
+RETURN_HELD_TIME = 0.1
+"""Seconds of current above `RETURN_CURRENT` that mean the arm is held: the current of a start from
+rest falls within a few ms, as the arm takes up speed."""
+
+RETURN_SLACK = math.radians(5.0)
+"""How much farther out (rad) than at the last sample of 0 V the arm may get while `return_arm`
+pushes it inwards beyond `arm_limit` before the return stops (the motor would be driving it out)."""
+
 AMPLIFIER_RANGE = 15.0
 """Largest `max_voltage` (V): the Qube's amplifier range, +-15 V (see `plant.py`)."""
 
@@ -186,6 +215,36 @@ def _real_number(name: str, value: Any) -> float:
     return float(value)
 
 
+def _unwind(signum: int, frame: Any) -> NoReturn:
+    raise SystemExit(128 + signum)
+
+
+class _TerminationUnwinds:
+    """While a board is open, SIGTERM (`kill`, a job scheduler, a closing session) raises SystemExit
+    (exit code 143) in the main thread, so that the program unwinds as after Ctrl-C and stops the
+    motor at once; Python's default would end the process on the spot, leaving the board to its
+    watchdog. Only where SIGTERM has its default action (a program's own handler is left alone); the
+    default comes back when the last board closes."""
+
+    def __init__(self):
+        self.open_boards: set[int] = set()
+
+    def hold(self, handle: object) -> None:
+        self.open_boards.add(id(handle))
+        if (threading.current_thread() is threading.main_thread()
+                and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL):
+            signal.signal(signal.SIGTERM, _unwind)
+
+    def release(self, handle: object) -> None:
+        self.open_boards.discard(id(handle))
+        if (not self.open_boards and threading.current_thread() is threading.main_thread()
+                and signal.getsignal(signal.SIGTERM) is _unwind):
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+TERMINATION_UNWINDS = _TerminationUnwinds()
+
+
 class _Handle:
     """What a finaliser needs to leave the board safe when its wrapper is collected or the
     interpreter exits: the board, the task and the channels, never the wrapper itself."""
@@ -211,22 +270,24 @@ class _Handle:
                 errors.append(error)
                 return None
 
-        if not attempt(board.watchdog_is_expired):  # an expired watchdog has already zeroed the outputs
-            attempt(board.write_analog, c["analog_outputs"], len(c["analog_outputs"]),
-                    np.zeros(len(c["analog_outputs"])))
-            attempt(board.write_digital, c["digital_outputs"], len(c["digital_outputs"]),
-                    np.zeros(len(c["digital_outputs"]), dtype=np.int8))
-            attempt(board.write_other, c["led_outputs"], len(c["led_outputs"]), np.array(LED_OFF_STATE))
-            if errors and attempt(board.watchdog_is_expired):
-                # It expired between the check and the writes, which it then refused: the outputs are
-                # at their expiration states (0 V, amplifier off), which is what the writes were for.
-                errors = [error for error in errors if isinstance(error, (KeyboardInterrupt, SystemExit))]
+        # The writes come first, whatever the board would answer to a query: an expired watchdog
+        # refuses them, its expiration states being 0 V and the amplifier off already.
+        attempt(board.write_analog, c["analog_outputs"], len(c["analog_outputs"]),
+                np.zeros(len(c["analog_outputs"])))
+        attempt(board.write_digital, c["digital_outputs"], len(c["digital_outputs"]),
+                np.zeros(len(c["digital_outputs"]), dtype=np.int8))
+        attempt(board.write_other, c["led_outputs"], len(c["led_outputs"]), np.array(LED_OFF_STATE))
+        if errors and attempt(board.watchdog_is_expired) is True:
+            # The writes were refused by an expired watchdog: the outputs are at their expiration
+            # states (0 V, amplifier off), which is what the writes were for.
+            errors = [error for error in errors if isinstance(error, (KeyboardInterrupt, SystemExit))]
         attempt(board.watchdog_stop)  # only after the outputs are zeroed
         if task is not None:
             attempt(board.task_stop, task)
             attempt(board.task_delete, task)
         attempt(board.close)
         self.task, self.open = None, False
+        attempt(TERMINATION_UNWINDS.release, self)
         return errors
 
 
@@ -274,6 +335,10 @@ class QuanserWrapper:
                             ("watchdog_timeout", watchdog_timeout)):
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be positive, got {value}")
+        if watchdog_timeout > MAX_WATCHDOG_TIMEOUT:
+            raise ValueError(f"watchdog_timeout must be at most {MAX_WATCHDOG_TIMEOUT:g} s "
+                             "(MAX_WATCHDOG_TIMEOUT: longer leaves a dead process's motor driven too long), "
+                             f"got {watchdog_timeout:g}")
         if max_voltage > AMPLIFIER_RANGE:
             raise ValueError(f"max_voltage must be at most the amplifier's {AMPLIFIER_RANGE:g} V, "
                              f"got {max_voltage}")
@@ -331,6 +396,8 @@ class QuanserWrapper:
         self._stall_at = [d.digital_inputs.index(c) for c in d.stall_error_inputs]
         self._arm_at = None if d.arm_encoder is None else d.encoder_inputs.index(d.arm_encoder)
         self._overflows_seen: int | None = None
+        self._return_from: float | None = None  # abs(arm angle) where return_arm() began beyond the limit
+        self._held_samples = 0  # samples in a row of return_arm() beyond the limit above RETURN_CURRENT
         self._last_counts: list[int] | None = None  # encoder counts of the last sample, for the glitch check
         self._board_error: type[Exception] = Exception  # the board's HILError class, set at open()
         self._handle = _Handle(self._channels)
@@ -389,6 +456,7 @@ class QuanserWrapper:
                 "it open") from error
         handle = self._handle
         handle.board, handle.task, handle.open, self._idle = board, None, True, False
+        TERMINATION_UNWINDS.hold(handle)
         self.missed_samples, self.stall_warning, self._overflows_seen = 0, False, None
         self._last_counts = None
         c = self._channels
@@ -460,6 +528,23 @@ class QuanserWrapper:
         units and signs. Raises ValueError after writing 0 V, or a `SafetyStopError` after
         stopping the motor (0 V, amplifier disabled: idle).
         """
+        return self._act(voltages, led, returning=False)
+
+    def return_arm(self, voltages: float | Sequence[float] | np.ndarray,
+                   led: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`action`, for bringing back an arm that is beyond `arm_limit` (where `action` stops).
+
+        While the arm is beyond the limit, each sample stops the motor with `ArmLimitError`
+        unless its voltage drives the arm towards its zero (or is 0) and is at most
+        `RETURN_VOLTAGE`, the motor current has not stayed above `RETURN_CURRENT` for
+        `RETURN_HELD_TIME` (the arm is held), and the arm is no more than `RETURN_SLACK` farther
+        out than it was at the last sample of 0 V (an arm still coasting outwards at 0 V is
+        braked by the motor's back-EMF, not driven). Within the limit it is `action`. The device's first
+        analog output drives the arm encoder's joint.
+        """
+        return self._act(voltages, led, returning=True)
+
+    def _act(self, voltages, led, returning: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         board = self._require_open()
         if self._idle:
             raise RuntimeError("the board is idle: call resume() before action()")
@@ -476,7 +561,7 @@ class QuanserWrapper:
         missed = self._check_missed_samples(board)
         self._check_amplifier()
         self._check_encoders(missed)
-        self._check_arm()
+        self._check_arm(volts[0], returning)
         try:
             board.write_analog(self._channels["analog_outputs"], len(volts), volts)
             if rgb is not None:
@@ -499,14 +584,16 @@ class QuanserWrapper:
         board = self._require_open()
         c = self._channels
         self._idle = True
-        try:
-            if not board.watchdog_is_expired():  # expired: the outputs are at 0 V, amplifier off
-                board.write_analog(c["analog_outputs"], len(c["analog_outputs"]), self._zero_volts)
-                board.write_digital(c["digital_outputs"], len(c["digital_outputs"]),
-                                    np.zeros(len(c["digital_outputs"]), dtype=np.int8))
-        except self._board_error as error:
-            if not board.watchdog_is_expired():  # it expired between the check and the writes: safe
-                raise BoardIOError(f"could not stop the motor: {error_text(error)}") from error
+        refused = None
+        amplifiers_off = np.zeros(len(c["digital_outputs"]), dtype=np.int8)
+        for write, channels, zeros in ((board.write_analog, c["analog_outputs"], self._zero_volts),
+                                       (board.write_digital, c["digital_outputs"], amplifiers_off)):
+            try:  # both writes, whatever a query would answer: nothing may skip them
+                write(channels, len(channels), zeros)
+            except self._board_error as error:
+                refused = refused or error
+        if refused is not None and board.watchdog_is_expired() is not True:
+            raise BoardIOError(f"could not stop the motor: {error_text(refused)}") from refused
         board.watchdog_stop()  # only now: until here the watchdog still guards the outputs
 
     def resume(self) -> None:
@@ -528,6 +615,7 @@ class QuanserWrapper:
             raise BoardIOError(f"could not resume driving: {error_text(error)}") from error
         self._idle = False
         self._last_counts = None  # the Qube may have moved while idle
+        self._return_from, self._held_samples = None, 0
 
     @property
     def is_idle(self) -> bool:
@@ -552,11 +640,15 @@ class QuanserWrapper:
             raise RuntimeError("the board is not open: use `with QubeServo2(...) as qube:` or call open()")
         return self._board
 
-    def _zero_voltage(self) -> None:
-        """Write 0 V unless an expired watchdog has already done so (and locked the outputs)."""
-        board = self._board
-        if not board.watchdog_is_expired():
+    def zero_voltage(self) -> None:
+        """Write 0 V now (the amplifier stays enabled, the watchdog running: the next `action` drives
+        again); what a refused action does. Refused only by an expired watchdog, which did it already."""
+        board = self._require_open()
+        try:
             board.write_analog(self._channels["analog_outputs"], len(self._zero_volts), self._zero_volts)
+        except self._board_error:
+            if board.watchdog_is_expired() is not True:
+                raise
 
     def _stop(self, error: HardwareError, cause: BaseException | None = None) -> NoReturn:
         """Stop driving (0 V, amplifier disabled, watchdog stopped: idle) and raise `error`."""
@@ -567,7 +659,7 @@ class QuanserWrapper:
         raise error from cause
 
     def _refuse(self, message: str) -> NoReturn:
-        self._zero_voltage()
+        self.zero_voltage()
         raise ValueError(message)
 
     def _checked_voltages(self, voltages) -> np.ndarray:
@@ -637,14 +729,31 @@ class QuanserWrapper:
                     "reference is lost; close the board, put the Qube at its start position (pendulum "
                     "hanging, arm centred) and open it again"))
 
-    def _check_arm(self) -> None:
+    def _check_arm(self, volts: float, returning: bool) -> None:
+        """Stop if the arm is beyond `arm_limit`, unless `returning` it by `return_arm`'s rules with
+        `volts` (board units) on the first analog output."""
         if self.arm_limit is None or self._arm_at is None:
             return
-        angle = abs(conventions.arm_angle(int(self._encoders[self._arm_at])))
-        if angle > self.arm_limit:
-            self._stop(ArmLimitError(
-                f"the arm is {math.degrees(angle):.0f} degrees from its zero (the centre), beyond "
-                f"arm_limit = {math.degrees(self.arm_limit):.0f} degrees"))
+        angle = conventions.arm_angle(int(self._encoders[self._arm_at]))
+        if abs(angle) <= self.arm_limit:
+            self._return_from, self._held_samples = None, 0
+            return
+        where = (f"the arm is {math.degrees(abs(angle)):.0f} degrees from its zero (the centre), beyond "
+                 f"arm_limit = {math.degrees(self.arm_limit):.0f} degrees")
+        if not returning:
+            self._stop(ArmLimitError(f"{where}; return_arm() may drive it back"))
+        if self._return_from is None or volts == 0.0:  # coasting out at 0 V is not the motor's doing
+            self._return_from = max(self._return_from or 0.0, abs(angle))
+        held = abs(float(self._currents[0])) > RETURN_CURRENT if len(self._currents) else False
+        self._held_samples = self._held_samples + 1 if held else 0
+        if conventions.ARM_SIGN * volts * angle > 0.0 or abs(volts) > RETURN_VOLTAGE:
+            self._stop(ArmLimitError(f"{where}: only at most {RETURN_VOLTAGE:g} V towards the centre may "
+                                     f"bring it back, not {conventions.ARM_SIGN * volts:g} V"))
+        if self._held_samples > RETURN_HELD_TIME * self.frequency:
+            self._stop(ArmLimitError(f"{where}, and it is held: the motor current stayed above "
+                                     f"{RETURN_CURRENT:g} A for {RETURN_HELD_TIME:g} s: free it"))
+        if abs(angle) > self._return_from + RETURN_SLACK:
+            self._stop(ArmLimitError(f"{where}, and moving away from the centre while being brought back"))
 
 
 class QubeServo2(QuanserWrapper):

@@ -128,7 +128,9 @@ def adapt(task: str = "swingup", domain: str = "qube_hardware",
     """
     from qube_suite import calibration, policies
     from qube_suite.evaluation import evaluate
-    from qube_suite.training import train
+    from qube_suite.training import require_rl, train
+
+    require_rl()  # before the board drives: the fine-tuning after the experiment needs it
 
     if init is None:
         init, train_kwargs["hyperparameters"] = fine_tuning(task, train_kwargs.get("hyperparameters"))

@@ -133,12 +133,16 @@ class QubeEnv(gymnasium.Env):
     def step(self, action):
         environment = self.environment
         if environment.needs_reset:
-            if environment.closed:
+            if self._closed or environment.closed:
                 raise RuntimeError("the environment is closed; make a new one to run episodes")
             raise RuntimeError("no episode is running (never reset, or the last one ended); "
                                "call reset() before step()")
         if not (type(action) is np.ndarray and action.shape == ACTION_SHAPE):
-            voltage_from_action(action, self._task.voltage_limit, allow_number=False)  # Gymnasium: shape (1,)
+            try:
+                voltage_from_action(action, self._task.voltage_limit, allow_number=False)  # shape (1,)
+            except ValueError:
+                self._physics.stop_motor()  # on hardware: 0 V before the refusal rises
+                raise
         reward, discount = environment.advance(action)
         terminated = discount == 0.0
         truncated = discount == 1.0
@@ -192,6 +196,31 @@ class QubeEnv(gymnasium.Env):
         if self._follows_target:
             info["target"] = self._task.target
         return info
+
+
+class StopMotorAtEpisodeEnd(gymnasium.Wrapper, gymnasium.utils.RecordConstructorArgs):
+    """The outermost wrapper of the hardware ids: what `gymnasium.make` wraps around a hardware
+    environment (its `TimeLimit` of `max_episode_steps` and any checker) cannot leave the motor driven.
+
+    When a step ends the episode (terminated, or truncated by a wrapper's time limit), the board
+    idles (0 V, amplifier off) before the step returns; when anything below raises, the motor is at
+    0 V before the error rises. Wrappers a program adds around this one are outside its reach: the
+    board's watchdog covers those.
+    """
+
+    def __init__(self, env: gymnasium.Env):
+        gymnasium.utils.RecordConstructorArgs.__init__(self)
+        gymnasium.Wrapper.__init__(self, env)
+
+    def step(self, action):
+        try:
+            observation, reward, terminated, truncated, info = self.env.step(action)
+        except BaseException:
+            self.env.unwrapped.physics.stop_motor()
+            raise
+        if terminated or truncated:
+            self.env.unwrapped.environment.stop_episode()
+        return observation, reward, terminated, truncated, info
 
 
 def to_gymnasium(environment: Environment, render_mode: str | None = None, **render_kwargs) -> QubeEnv:

@@ -7,6 +7,7 @@ from collections.abc import Iterator, Mapping
 from typing import Any
 
 import gymnasium
+from gymnasium.envs.registration import WrapperSpec
 
 from qube_suite import devices, suite
 from qube_suite.arguments import check_keywords, keywords_of
@@ -81,6 +82,11 @@ and the test suite runs Gymnasium's full `check_env` on every id. `gymnasium.mak
 disable_env_checker=False)` still adds the checker."""
 
 
+HARDWARE_GUARD = WrapperSpec("StopMotorAtEpisodeEnd", "qube_suite.wrappers.gym_env:StopMotorAtEpisodeEnd", {})
+"""Wrapped around every hardware id, outside `gymnasium.make`'s own wrappers (its `TimeLimit`): the
+motor stops at once when one of them ends the episode or raises (`gym_env.StopMotorAtEpisodeEnd`)."""
+
+
 def register_environments() -> None:
     """Register every task of every device under its ids, now and whenever a task is registered
     later: on the simulated domain for `gymnasium.make` and `gymnasium.make_vec`, on the hardware
@@ -105,4 +111,5 @@ def _register_task(device: devices.Device, task: str) -> None:
     env_id = gymnasium_id(task, hardware)
     if env_id not in gymnasium.registry:
         gymnasium.register(env_id, entry_point=make_env, nondeterministic=True,
-                           kwargs={"task": task, "domain": hardware}, **CHECKS_BUILT_IN)
+                           kwargs={"task": task, "domain": hardware},
+                           additional_wrappers=(HARDWARE_GUARD,), **CHECKS_BUILT_IN)

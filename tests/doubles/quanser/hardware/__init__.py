@@ -29,13 +29,22 @@ strictly here:
   outputs into the expiration states and makes every write raise `HILError` until
   `watchdog_clear()`;
 * `HILError` has `error_code` and `get_error_message()`; `str()` of it gives only
-  the code, as the real class does, so callers must ask for the message.
+  the code, as the real class does, so callers must ask for the message;
+* a call is atomic, as a call into Quanser's C library is: a signal handler
+  (Ctrl-C) runs only after the board has answered. Each call's request and reply
+  travel on a thread of the card's own, where no signal handler can cut into
+  them; the caller waits for the reply, and an interrupt that arrives meanwhile
+  is raised once the call is over, so no reply is ever left for the next call.
 """
 
 from __future__ import annotations
 
 import enum
+import itertools
 import os
+import queue
+import threading
+import time
 
 import numpy as np
 
@@ -87,6 +96,52 @@ def _buffer(buffer, dtype, needed: int, kind: str, writable: bool) -> np.ndarray
     return buffer
 
 
+class _Carrier:
+    """A thread that carries a card's calls to the board and back: signal handlers run only in the
+    main thread, so none can cut a call in two. Each reply is filed under its call's number, so an
+    interrupted caller leaves nothing behind that a later call could take for its own."""
+
+    def __init__(self, connection):
+        self._connection = connection
+        self._calls = itertools.count()
+        self._requests: queue.SimpleQueue = queue.SimpleQueue()
+        self._replies: dict[int, tuple] = {}
+        self._bell: queue.SimpleQueue = queue.SimpleQueue()  # rung once a reply is filed
+        self._thread = threading.Thread(target=self._serve, name="hil-carrier", daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        while True:
+            number, request = self._requests.get()
+            if request is None:
+                return
+            try:
+                self._connection.send(request)
+                reply = self._connection.recv()
+            except BaseException as error:  # the board process is gone: the caller sees why
+                reply = ("bug", f"{type(error).__name__}: {error}")
+            self._replies[number] = reply
+            self._bell.put(number)
+
+    def call(self, request: tuple) -> tuple:
+        """The board's reply to `request`; an interrupt while waiting is raised after the reply came."""
+        number = next(self._calls)
+        self._requests.put((number, request))
+        try:
+            while number not in self._replies:
+                self._bell.get()
+            return self._replies.pop(number)
+        except BaseException:
+            while number not in self._replies:  # the call completes first, as a C call would
+                time.sleep(0.0001)
+            self._replies.pop(number)
+            raise
+
+    def stop(self) -> None:
+        self._requests.put((None, None))
+        self._thread.join()
+
+
 class _Task:
     """A task handle: valid only with the card that created it."""
 
@@ -102,6 +157,7 @@ class HIL:
     def __init__(self, card_type: str | None = None, card_identifier: str = "0"):
         self._connection = None
         self._identifier = None
+        self._carrier: _Carrier | None = None
         if card_type is not None:
             self.open(card_type, card_identifier)
 
@@ -110,8 +166,7 @@ class HIL:
     def _call(self, method: str, *args):
         if self._connection is None:
             raise HILError(-1, "the card is not open")
-        self._connection.send((method, self._identifier, *args))
-        reply = self._connection.recv()
+        reply = self._carrier.call((method, self._identifier, *args))
         if reply[0] == "hil":
             raise HILError(reply[1], reply[2])
         if reply[0] == "bug":
@@ -134,11 +189,11 @@ class HIL:
 
         self._connection = Client(address, "AF_UNIX", authkey=AUTHKEY)
         self._identifier = card_identifier
+        self._carrier = _Carrier(self._connection)
         try:
             self._call("open", card_type)
         except BaseException:
-            self._connection.close()
-            self._connection = None
+            self._hang_up()
             raise
 
     def is_valid(self) -> bool:
@@ -150,8 +205,12 @@ class HIL:
         try:
             self._call("close")
         finally:
-            self._connection.close()
-            self._connection = None
+            self._hang_up()
+
+    def _hang_up(self) -> None:
+        self._carrier.stop()
+        self._connection.close()
+        self._connection, self._carrier = None, None
 
     def set_card_specific_options(self, options: str, max_length: int) -> None:
         if not isinstance(options, str) or not isinstance(max_length, int):
