@@ -17,6 +17,10 @@ from typing import Any
 
 from qube_suite.progress import Progress
 
+VIDEO_FPS = 30.0
+"""Video frames per second unless --fps says otherwise (or the control rate, if lower): smooth to the
+eye, and rendering every 4 ms control step would take eight times longer."""
+
 DEMO_PLOT = "qube_demo.png"
 """Where `qube-suite demo` writes its plot when matplotlib is installed."""
 
@@ -116,6 +120,11 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _frame_rate(text: str) -> float | str:
+    """--fps: a positive number, or "control" for one frame per control step."""
+    return text if text == "control" else _positive_float(text)
+
+
 def _frame_size(text: str) -> tuple[int, int]:
     try:
         width, height = (int(part) for part in text.lower().split("x"))
@@ -123,6 +132,13 @@ def _frame_size(text: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(f"must be WIDTHxHEIGHT in pixels, e.g. 640x480, got {text}") \
             from None
     return width, height
+
+
+def _presets() -> str:
+    """The randomization presets' names, for help texts."""
+    from qube_suite.randomization.presets import PRESETS
+
+    return ", ".join(PRESETS)
 
 
 def _add_hardware_arguments(parser: argparse.ArgumentParser) -> None:
@@ -177,24 +193,36 @@ def _make_policy(args: argparse.Namespace, environment: Any) -> tuple[Any, str]:
     from qube_suite.policies import load_policy
 
     if args.policy is not None:
-        return load_policy(args.policy), args.policy
-    controller = policy_for(args.controller, environment)
-    suited = getattr(controller, "tasks", ())
-    if suited and args.task not in suited:
-        print(f"qube-suite: note: controller {args.controller!r} is meant for {', '.join(suited)}",
-              file=sys.stderr)
-    return controller, args.controller
+        policy, name = load_policy(args.policy), args.policy
+    else:
+        policy, name = policy_for(args.controller, environment), args.controller
+    _note_if_meant_for_other_tasks(name, policy, args.task)
+    return policy, name
+
+
+def _note_if_meant_for_other_tasks(name: str, policy: Any, task: str) -> None:
+    """Tell the user on stderr when the controller or policy is meant for other tasks than `task`."""
+    from qube_suite.evaluation import meant_for
+
+    suited = meant_for(policy)
+    if suited and task not in suited:
+        print(f"qube-suite: note: {name!r} is meant for {', '.join(suited)}", file=sys.stderr)
+
+
+def _count(number: int, noun: str) -> str:
+    """"1 episode", "2 episodes"."""
+    return f"{number} {noun}{'' if number == 1 else 's'}"
 
 
 def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
     """Files written about the episodes."""
     outputs = parser.add_argument_group("outputs")
     outputs.add_argument("--video", metavar="FILE.mp4",
-                         help="film the episodes into one mp4 (needs the media extra; rendering without "
-                              "a GPU is slow, so consider --fps)")
-    outputs.add_argument("--fps", type=_positive_float,
-                         help="video frames per second, at most the control rate (default: the control "
-                              "rate); steps between frames are skipped, playback stays at real speed")
+                         help="film the episodes into one mp4 (needs the media extra)")
+    outputs.add_argument("--fps", type=_frame_rate,
+                         help=f"video frames per second, at most the control rate, or 'control' for one "
+                              f"frame per control step (default: {VIDEO_FPS:g}, or the control rate if "
+                              f"lower); steps between frames are skipped, playback stays at real speed")
     outputs.add_argument("--camera", default="front_oblique",
                          help="video camera: front_oblique (default), front or top")
     outputs.add_argument("--size", type=_frame_size, default=(640, 480), metavar="WIDTHxHEIGHT",
@@ -224,10 +252,16 @@ def _video_recorder(args: argparse.Namespace, environment: Any):
     from qube_suite import media
 
     width, height = args.size
-    if args.fps is not None and args.fps > environment.control_frequency:
+    if args.fps is None:
+        fps = min(VIDEO_FPS, environment.control_frequency)
+    elif args.fps == "control":
+        fps = None  # one frame per control step
+    elif args.fps > environment.control_frequency:
         raise ValueError(f"--fps {args.fps:g} exceeds the control rate of "
                          f"{environment.control_frequency:g} Hz")
-    recorder = media.VideoRecorder(args.video, args.fps, args.camera, width, height)
+    else:
+        fps = args.fps
+    recorder = media.VideoRecorder(args.video, fps, args.camera, width, height)
     recorder.renderer.render(environment.physics)  # a wrong camera, size or OpenGL fails now
     return recorder
 
@@ -253,7 +287,7 @@ def _recorder(args: argparse.Namespace, environment: Any, policy_name: str):
 def _write_outputs(args: argparse.Namespace, traces: list) -> None:
     """Write the files the arguments ask for from the episodes' traces; say where recordings went."""
     if args.record:
-        print(f"recording of {len(traces)} episode(s) written to {args.record}")
+        print(f"recording of {_count(len(traces), 'episode')} written to {args.record}")
     if args.plot:
         from qube_suite import plotting
 
@@ -334,7 +368,7 @@ def _add_run(commands) -> None:
     run.add_argument("--episodes", type=_positive_int, default=1, help="number of episodes (default: 1)")
     run.add_argument("--seed", type=int, default=0, help="seed of the first episode; then seed + 1, ... "
                                                          "(default: 0)")
-    run.add_argument("--randomization", help="a preset (none, mild, moderate, sim2real) or a YAML file")
+    run.add_argument("--randomization", help=f"a preset ({_presets()}) or a YAML file")
     _add_hardware_arguments(run)
     run.add_argument("--realtime", action="store_true",
                      help="keep to the wall clock: sleep in simulation, the substitute board's realtime "
@@ -407,6 +441,7 @@ def _eval(args: argparse.Namespace) -> int:
     from qube_suite.policies import load_policy
 
     policy = args.controller if args.policy is None else load_policy(args.policy)
+    _note_if_meant_for_other_tasks(args.controller or args.policy, policy, args.task)
     result = evaluate(policy, domain=args.domain, task=args.task, episodes=args.episodes,
                       seed=args.seed, progress=not args.quiet, task_kwargs=_target_kwargs(args),
                       domain_kwargs=_hardware_domain_kwargs(args) or None)
@@ -414,8 +449,9 @@ def _eval(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
-        print(f"{summary['policy']} on {summary['domain']}/{summary['task']}, {summary['episodes']} episodes "
-              f"from seed {summary['seed']}:")
+        episodes = _count(summary["episodes"], "episode")
+        print(f"{summary['policy']} on {summary['domain']}/{summary['task']}, {episodes} from seed "
+              f"{summary['seed']}:")
         print(f"  return {summary['mean_return']:.1f} +- {summary['std_return']:.1f}, "
               f"success {100 * summary['success_rate']:.0f} %, compute per step "
               f"{summary['step_time_median_ms']:.3f} ms median, {summary['step_time_p99_ms']:.3f} ms p99")
@@ -515,7 +551,7 @@ def _add_train(commands) -> None:
                           help="environment steps (default: 2000000)")
     training.add_argument("--seed", type=int, default=None, help="seed (default: 0)")
     training.add_argument("--randomization", default=None,
-                          help="preset (mild, moderate, sim2real, wide) or YAML file (default: none)")
+                          help=f"preset ({_presets()}) or YAML file (default: none)")
     training.add_argument("--domain", choices=("qube", "qube_hardware"), default=None,
                           help="domain to train on (default: qube)")
     training.add_argument("--num-envs", type=_positive_int, default=None,
@@ -732,6 +768,14 @@ def _exit_cleanly_on_sigterm():
         signal.signal(signal.SIGTERM, previous)
 
 
+def _message(error: BaseException) -> str:
+    """What to tell the user: an operating-system error on a file as "FILE: what went wrong"
+    rather than Python's "[Errno N] ..."."""
+    if isinstance(error, OSError) and error.filename is not None and error.strerror:
+        return f"{error.filename}: {error.strerror}"
+    return str(error)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line with `argv` (default: `sys.argv[1:]`); return the exit code."""
     from qube_suite.hardware.errors import HardwareError
@@ -741,7 +785,7 @@ def main(argv: list[str] | None = None) -> int:
         with _exit_cleanly_on_sigterm():
             return args.run(args)
     except (ValueError, OSError, ImportError, HardwareError) as error:
-        print(f"qube-suite: error: {' '.join(str(error).split())}", file=sys.stderr)  # one line
+        print(f"qube-suite: error: {' '.join(_message(error).split())}", file=sys.stderr)  # one line
         return 2
     except KeyboardInterrupt:
         print("qube-suite: interrupted", file=sys.stderr)

@@ -92,6 +92,18 @@ def policy_for(spec: str, environment) -> Callable[[Any], float]:
                      f"{', '.join(shipped()) or 'none'}; or give the path of a .npz policy file")
 
 
+def meant_for(policy: str | Callable[[Any], float]) -> tuple[str, ...]:
+    """The tasks a controller (by name), learned policy (by name or file) or policy object is
+    meant for; () for any task, or for a name `policy_for` will refuse."""
+    if isinstance(policy, str):
+        if policy in baselines.CONTROLLERS:
+            return tuple(getattr(baselines.CONTROLLERS[policy], "tasks", ()))
+        if not names_a_policy(policy):
+            return ()
+        policy = load_policy(policy)
+    return tuple(getattr(policy, "tasks", ()))
+
+
 def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: str = "swingup",
              episodes: int = 20, seed: int = 0, randomization: Any = None,
              task_kwargs: dict[str, Any] | None = None, environment_kwargs: dict[str, Any] | None = None,

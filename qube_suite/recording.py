@@ -46,6 +46,8 @@ from typing import Any
 
 import numpy as np
 
+from qube_suite import files
+
 FORMAT = "qube_suite.recording"
 VERSION = 1
 
@@ -207,8 +209,7 @@ def load_recording(path: str | os.PathLike) -> Recording:
     Raises ValueError if the file is not a qube_suite recording or a line before the last one is
     damaged.
     """
-    with open(path, "rb") as file:
-        lines = file.read().split(b"\n")
+    lines = files.read_bytes(path, "recording").split(b"\n")
     truncated = lines[-1] != b""  # a complete file ends with a newline
     values = []
     for number, line in enumerate(lines[:-1], start=1):
