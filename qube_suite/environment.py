@@ -12,6 +12,7 @@ from dm_env import specs
 
 from qube_suite import randomization as randomization_
 from qube_suite.arguments import is_number
+from qube_suite.domains.interface import SeededSubstitute
 from qube_suite.episode_rules import judge_step
 from qube_suite.tasks.base import voltage_from_action
 
@@ -90,6 +91,7 @@ class Environment(control.Environment):
             randomization_.load(randomization), physics, 1.0 / self._control_frequency)
         self._randomization_sample = None
         self._episode_seed: int | None = None
+        self._seeded_random = task.random  # a different object later: reseeded from outside (shimmy)
         self.observers: list = []
     @property
     def control_frequency(self) -> float:
@@ -146,6 +148,10 @@ class Environment(control.Environment):
         if seed is not None:
             self._task.random.seed(seed)
         self._episode_seed = seed
+        reseeded = seed is not None or self._task.random is not self._seeded_random
+        self._seeded_random = self._task.random
+        if reseeded and isinstance(self._physics, SeededSubstitute):
+            self._physics.seed_substitute(int(self._task.random.randint(2**31)))
         if self._randomizer is not None:
             self._randomization_sample = self._randomizer.draw(self._task.random)
         with self._physics.reset_context():
