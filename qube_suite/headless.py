@@ -48,7 +48,7 @@ def _switch_imported_renderers(backend: str) -> None:
         if legacy is not None:
             legacy.GLContext = context
     render = sys.modules.get("dm_control._render")
-    if render is not None and render.BACKEND != backend:
+    if render is not None and backend != render.BACKEND:
         render.Renderer = {"osmesa": render._import_osmesa, "egl": render._import_egl}[backend]()
         render.BACKEND = backend
         render.USING_GPU = backend == "egl"
