@@ -731,7 +731,54 @@ def _add_adapt(commands) -> None:
     adapt.set_defaults(run=_adapt)
 
 
-SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_train, _add_bench, _add_calibrate,
+# -- view ------------------------------------------------------------------------------------
+
+
+def _view(args: argparse.Namespace) -> int:
+    from qube_suite import viewer
+
+    if args.record:
+        _check_output_paths(argparse.Namespace(video=None, plot=None, record=args.record))
+    result = viewer.view(args.task, domain=args.domain, controller=args.controller, policy=args.policy,
+                         teleop=args.teleop, randomization=args.randomization, seconds=args.seconds,
+                         record=args.record, seed=args.seed)
+    print(f"{result.simulated_time:.2f} s simulated in {result.wall_time:.2f} s of wall-clock time "
+          f"(pauses excluded), {_count(result.episodes, 'episode')}"
+          + (f"; recording written to {args.record}" if args.record else ""))
+    return 0
+
+
+def _add_view(commands) -> None:
+    from qube_suite.viewer import KEYS
+
+    keys = "\n".join(f"  {key:16s}{meaning}" for key, meaning in KEYS)
+    view = commands.add_parser(
+        "view", help="watch and drive the simulated Qube in a window, at real time",
+        description="Open MuJoCo's viewer on a task at real time, with a controller or policy in the loop "
+                    "and/or the keyboard driving the motor; theta, alpha, voltage, reward and return are "
+                    "shown over the scene. On macOS run it with mjpython: "
+                    "'mjpython -m qube_suite.cli view ...'.",
+        epilog=f"keys:\n{keys}\n\nexamples:\n"
+               "  qube-suite view --task swingup --teleop\n"
+               "  qube-suite view --task swingup --controller swingup --teleop\n"
+               "  qube-suite view --task balance --policy runs/balance/policy.npz --randomization mild\n"
+               "  qube-suite view --task swingup --teleop --seconds 30 --record drive.jsonl",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    view.add_argument("--task", required=True, help="a task of 'qube-suite list', e.g. swingup")
+    view.add_argument("--domain", choices=("qube", "qube_hardware"), default="qube",
+                      help="qube (default) or qube_hardware: the substitute board, shown as its digital twin")
+    actor = view.add_mutually_exclusive_group()
+    actor.add_argument("--controller", help="a controller or shipped policy, e.g. swingup or ppo:balance")
+    actor.add_argument("--policy", metavar="FILE.npz", help="a learned policy file")
+    view.add_argument("--teleop", action="store_true", help="drive the motor with the arrow keys")
+    view.add_argument("--randomization", help=f"a preset ({_presets()}) or a YAML file")
+    view.add_argument("--seconds", type=_positive_float, help="stop after this much simulated time (s)")
+    view.add_argument("--record", metavar="FILE.jsonl", help="record every step (the format of run --record)")
+    view.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
+    view.set_defaults(run=_view)
+
+
+SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_view, _add_train, _add_bench, _add_calibrate,
                _add_check_board, _add_adapt)
 """Parser builders of the subcommands, in the order `--help` lists them."""
 
