@@ -273,13 +273,14 @@ def media_films_after_episode(environment: Any) -> bool:
     return media.films_after_episode(environment)
 
 
-def _recorder(args: argparse.Namespace, environment: Any, policy_name: str):
-    """The episode recorder the arguments ask for, observing `environment`; None without --record."""
-    if args.record is None:
+def _recorder(args: argparse.Namespace, environment: Any, policy_name: str, path: str | None):
+    """The episode recorder writing `path` (--record, or --live's), observing `environment`; None
+    without a path."""
+    if path is None:
         return None
     from qube_suite import recording
 
-    return recording.Recorder(args.record, environment, metadata={
+    return recording.Recorder(path, environment, metadata={
         "domain": args.domain, "task": args.task, "policy": policy_name, "randomization": args.randomization,
         "board": args.board, "realtime": args.realtime})
 
@@ -296,13 +297,19 @@ def _write_outputs(args: argparse.Namespace, traces: list) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from qube_suite import episodes, suite
 
     _check_output_paths(args)
     if args.plot:  # a missing extra fails before the episodes run
         from qube_suite import extras
 
         extras.require("matplotlib", "--plot")
+    with _live_scope(args) as record:
+        return _run_episodes(args, record)
+
+
+def _run_episodes(args: argparse.Namespace, record: str | None) -> int:
+    from qube_suite import episodes, suite
+
     domain_kwargs = dict(REALTIME_DOMAIN_KWARGS.get(args.domain, {})) if args.realtime else {}
     domain_kwargs.update(_hardware_domain_kwargs(args))
     task_kwargs = {"random": args.seed, **_target_kwargs(args)}
@@ -312,7 +319,7 @@ def _run(args: argparse.Namespace) -> int:
     try:
         policy, name = _make_policy(args, environment)
         recorder = _video_recorder(args, environment)
-        episode_recorder = _recorder(args, environment, name)
+        episode_recorder = _recorder(args, environment, name, record)
         film_after = recorder is not None and media_films_after_episode(environment)
         hooks = [recorder] if recorder is not None and not film_after else []
         if args.realtime and args.domain not in REALTIME_DOMAIN_KWARGS:
@@ -375,6 +382,7 @@ def _add_run(commands) -> None:
                           "mode on qube_hardware")
     _add_target_arguments(run)
     _add_output_arguments(run)
+    _add_live(run)
     _add_quiet(run)
     run.set_defaults(run=_run)
 
@@ -442,9 +450,10 @@ def _eval(args: argparse.Namespace) -> int:
 
     policy = args.controller if args.policy is None else load_policy(args.policy)
     _note_if_meant_for_other_tasks(args.controller or args.policy, policy, args.task)
-    result = evaluate(policy, domain=args.domain, task=args.task, episodes=args.episodes,
-                      seed=args.seed, progress=not args.quiet, task_kwargs=_target_kwargs(args),
-                      domain_kwargs=_hardware_domain_kwargs(args) or None)
+    with _live_scope(args) as record:
+        result = evaluate(policy, domain=args.domain, task=args.task, episodes=args.episodes,
+                          seed=args.seed, progress=not args.quiet, task_kwargs=_target_kwargs(args),
+                          domain_kwargs=_hardware_domain_kwargs(args) or None, record=record)
     summary = result.to_dict()
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -472,6 +481,7 @@ def _add_eval(commands) -> None:
     evaluation.add_argument("--episodes", type=int, default=20, help="number of episodes (default: 20)")
     evaluation.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
     evaluation.add_argument("--json", action="store_true", help="print the result as JSON")
+    _add_live(evaluation)
     _add_target_arguments(evaluation)
     _add_hardware_arguments(evaluation)
     _add_quiet(evaluation)
@@ -731,6 +741,74 @@ def _add_adapt(commands) -> None:
     adapt.set_defaults(run=_adapt)
 
 
+# -- live scopes and watch -----------------------------------------------------------------
+
+
+def _add_live(parser: argparse.ArgumentParser) -> None:
+    """--live: scopes in another process, fed by the recording (qube_suite.live)."""
+    parser.add_argument("--live", nargs="?", const="viewer", metavar="viewer|web|FILE.rrd",
+                        help="live scopes of theta, alpha, voltage, current, reward and LED and the digital "
+                             "twin, in another process fed by the recording (--record, else a temporary "
+                             "file): Rerun's viewer (default), its web viewer, or saved to a .rrd file "
+                             "(needs the live extra)")
+
+
+@contextlib.contextmanager
+def _live_scope(args: argparse.Namespace):
+    """The recording to write (`args.record`, or a temporary file with --live), while `watch` follows
+    it in another process; the watcher is told the recording is complete at the end."""
+    if not args.live:
+        yield getattr(args, "record", None)
+        return
+    import tempfile
+
+    from qube_suite import extras, live
+
+    extras.require("rerun", "--live", extra="live")
+    with tempfile.TemporaryDirectory(prefix="qube_suite_live_") as folder:
+        record = getattr(args, "record", None) or str(pathlib.Path(folder) / "live.jsonl")
+        pathlib.Path(record).write_text("")  # the watcher follows it from the start
+        watcher = live.start_watcher(record, args.live)
+        try:
+            yield record
+        finally:
+            live.finish_watcher(watcher)
+
+
+def _watch(args: argparse.Namespace) -> int:
+    from qube_suite import live
+
+    done = live.stdin_closed() if args.until_stdin_closes else None
+    sink = None if args.sink == "none" else args.sink
+    rows = live.watch(args.recording, follow=args.follow, done=done, sink=sink, save=args.save,
+                      twin=not args.no_twin)
+    print(f"{rows} rows of {args.recording} shown" + (f"; scopes saved to {args.save}" if args.save else ""))
+    return 0
+
+
+def _add_watch(commands) -> None:
+    watch = commands.add_parser(
+        "watch", help="live scopes of a recording being written (or a replay of a finished one)",
+        description="Show a recording's theta, alpha, voltage, current, reward and LED as scrolling plots "
+                    "of the last seconds, and the digital twin in the measured angles, in Rerun's viewer "
+                    "(needs the live extra: pip install 'qube_suite[live]').",
+        epilog="examples:\n  qube-suite watch balance.jsonl --follow     (while 'run ... --record "
+               "balance.jsonl' runs)\n  qube-suite watch balance.jsonl              (a replay)\n"
+               "  qube-suite watch balance.jsonl --sink web    (in a browser)\n"
+               "  qube-suite watch balance.jsonl --sink none --save balance.rrd",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    watch.add_argument("recording", help="a recording (run/eval/view --record)")
+    watch.add_argument("--follow", action="store_true",
+                       help="go on showing lines as they are written, until Ctrl-C")
+    watch.add_argument("--until-stdin-closes", action="store_true",
+                       help="with --follow: stop once standard input closes (how run --live ends it)")
+    watch.add_argument("--sink", choices=("viewer", "web", "none"), default="viewer",
+                       help="Rerun's viewer (default), its web viewer served on this machine, or none")
+    watch.add_argument("--save", metavar="FILE.rrd", help="also save the scopes (replay: rerun FILE.rrd)")
+    watch.add_argument("--no-twin", action="store_true", help="no digital twin (it needs OpenGL)")
+    watch.set_defaults(run=_watch)
+
+
 # -- view ------------------------------------------------------------------------------------
 
 
@@ -778,8 +856,8 @@ def _add_view(commands) -> None:
     view.set_defaults(run=_view)
 
 
-SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_view, _add_train, _add_bench, _add_calibrate,
-               _add_check_board, _add_adapt)
+SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_view, _add_watch, _add_train, _add_bench,
+               _add_calibrate, _add_check_board, _add_adapt)
 """Parser builders of the subcommands, in the order `--help` lists them."""
 
 
