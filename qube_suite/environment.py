@@ -156,7 +156,7 @@ class Environment(control.Environment):
             self._randomization_sample = self._randomizer.draw(self._task.random)
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics)
-        self._physics.set_led(reward_colour(self._task.get_reward(self._physics)))
+        self._show(self._task.get_reward(self._physics))
         self._reset_next_step = False
         for observer in self.observers:
             observer.episode_started(self)
@@ -204,12 +204,18 @@ class Environment(control.Environment):
         self._reset_next_step = True
         self._physics.end_episode()
 
+    def _show(self, reward: float) -> None:
+        """The reward on the LED, and with the task's `visualize_reward` in dm_control's colours."""
+        self._physics.set_led(reward_colour(reward))
+        if self._task.visualize_reward:
+            self._physics.show_reward(reward)
+
     def _finish_step(self, action) -> tuple[float, float | None]:
         physics = self._physics
         self._step_count += 1
         reward, terminated, truncated = judge_step(self._task, physics, physics.physics_error is not None,
                                                    self._step_count, self._episode_steps)
-        physics.set_led(reward_colour(reward))
+        self._show(reward)
         discount = 0.0 if terminated else 1.0 if truncated else None
         if discount is not None:
             self._reset_next_step = True

@@ -49,6 +49,9 @@ SPARSE = _tagged("sparse")
 """The sparse-reward variants."""
 FOLLOW = _tagged("follow")
 """The tasks with a moving arm target."""
+REWARD_VIZ = tuple((domain, task) for domain, task in BENCHMARKING if domain == "qube")
+"""The tasks whose `visualize_reward` dm_control's suite tests check (in simulation; every task and the
+hardware domain's digital twin have it too): the pendulum's colour blends with the reward."""
 
 
 def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None = None,

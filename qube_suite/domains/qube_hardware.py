@@ -437,6 +437,10 @@ class Physics(MeasuredState, control.Physics):
         than a sample."""
         return self.drawable().render(*args, **kwargs)
 
+    def show_reward(self, reward: float) -> None:
+        """dm_control's reward colours (a task's `visualize_reward`) on the digital twin."""
+        self._digital_twin().show_reward(reward)
+
     def _digital_twin(self):
         if self._twin is None:
             from qube_suite.domains import qube
