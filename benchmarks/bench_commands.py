@@ -54,6 +54,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=20)
     parser.add_argument("--realtime", action="store_true", help="run the commands under chrt -f 10")
+    parser.add_argument("--match", default="", help="only the commands containing this text")
     parser.add_argument("--live", action="store_true",
                         help="run and eval with live scopes in another process, saved to a .rrd file "
                              "(no display needed; the scopes' work is the same as for a viewer)")
@@ -96,7 +97,7 @@ def run_commands(args, cli: list[str], single_threaded: dict[str, str], server, 
     if args.live:
         commands = [command + " --live scopes.rrd" for command in commands
                     if command.split()[1] in ("run", "eval") and "--video" not in command]
-    for command in commands:
+    for command in [command for command in commands if args.match in command]:
         successes, worst, errors, started = 0, 0.0, [], time.perf_counter()
         for _ in range(args.runs):
             result = subprocess.run(cli + shlex.split(command)[1:], env=environment, cwd=directory,

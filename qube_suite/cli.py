@@ -203,8 +203,9 @@ def _make_policy(args: argparse.Namespace, environment: Any) -> tuple[Any, str]:
 def _note_if_meant_for_other_tasks(name: str, policy: Any, task: str) -> None:
     """Tell the user on stderr when the controller or policy is meant for other tasks than `task`."""
     from qube_suite.evaluation import meant_for
+    from qube_suite.tasks import SUITE
 
-    suited = meant_for(policy)
+    suited = meant_for(policy) if task in SUITE else ()  # an unknown task is an error of its own
     if suited and task not in suited:
         print(f"qube-suite: note: {name!r} is meant for {', '.join(suited)}", file=sys.stderr)
 

@@ -37,7 +37,15 @@ WINDOW = 10.0
 """Seconds of recorded time the scopes show, ending at the latest reading."""
 
 TWIN_PERIOD = 0.1
-"""Recorded time between two pictures of the digital twin (s)."""
+"""Recorded time between two pictures of the digital twin in a replay (s)."""
+
+LIVE_TWIN_PERIOD = 0.25
+"""Wall-clock time between two pictures of the digital twin while following a recording (s): drawing
+takes about 0.1 s with software OpenGL, and the scope must leave the computer to the control loop."""
+
+NICENESS = 10
+"""How much lower than the control loop's the following watcher's scheduling priority is (POSIX
+nice increment): on a computer with few cores the loop gets the CPU first."""
 
 TWIN_SIZE = (320, 240)
 """The twin's picture (pixels)."""
@@ -97,9 +105,9 @@ class Scope:
     Args:
         stream: the `rerun` module (or a recording stream with its functions).
         twin: draws the digital twin: (theta, alpha, led rgb) -> image; None: no twin.
-        live: the rows arrive as they are written: the twin is drawn for the latest row of a batch
-            only (every `TWIN_PERIOD` at most), which keeps the scope up with the Qube even where
-            drawing is slow; else every `TWIN_PERIOD` of recorded time.
+        live: the rows arrive as they are written: the twin is drawn for the latest reading, every
+            `LIVE_TWIN_PERIOD` of wall-clock time at most, which keeps the scope up with the Qube
+            even where drawing is slow; else every `TWIN_PERIOD` of recorded time.
     """
 
     def __init__(self, stream: Any, twin: Any = None, live: bool = False):
@@ -144,13 +152,19 @@ class Scope:
         rr.send_columns("scope/led", indexes=index, columns=rr.Scalars.columns(scalars=led))
         if self._twin is None:
             return
-        due = range(len(times) - 1, len(times)) if self._live else range(len(times))
-        for i in due:
-            now = float(times[i])
+        if self._live:  # the latest reading, every LIVE_TWIN_PERIOD of wall-clock time at most
+            if time.monotonic() >= self._next_twin:
+                self._draw_twin(float(times[-1]), column["theta"][-1], column["alpha"][-1], led[-1])
+                self._next_twin = time.monotonic() + LIVE_TWIN_PERIOD
+            return
+        for i, now in enumerate(times.tolist()):
             if now >= self._next_twin:
-                rr.set_time("time", duration=now)
-                rr.log("twin", rr.Image(self._twin(column["theta"][i], column["alpha"][i], led[i])))
+                self._draw_twin(now, column["theta"][i], column["alpha"][i], led[i])
                 self._next_twin = now + TWIN_PERIOD
+
+    def _draw_twin(self, now: float, theta: float, alpha: float, led: np.ndarray) -> None:
+        self._rr.set_time("time", duration=now)
+        self._rr.log("twin", self._rr.Image(self._twin(theta, alpha, led)))
 
 
 class Twin:
@@ -207,6 +221,8 @@ def watch(path: str | os.PathLike, follow: bool = False, done: threading.Event |
         raise ValueError("give a sink, a file to save to, or both")
     if not os.path.exists(path):
         raise MissingFileError(path, "recording")
+    if follow and hasattr(os, "nice"):
+        os.nice(NICENESS)  # the Qube's control loop, on the same computer, comes first
     rr.init("qube_suite", recording_id=f"qube_suite:{os.path.abspath(path)}", spawn=False)
     layout = blueprint()
     sinks = []
