@@ -12,6 +12,7 @@ watchdog at 100 ms).
     python benchmarks/bench_commands.py              # 20 runs of each command (about 15 minutes)
     python benchmarks/bench_commands.py --runs 3
     python benchmarks/bench_commands.py --realtime   # the commands under `chrt -f 10`
+    python benchmarks/bench_commands.py --live       # run and eval with live scopes (--live FILE.rrd)
 
 `--realtime` runs each command as a lab would run a control loop on a busy
 computer: with real-time scheduling (`chrt -f 10`, needs the privilege) and
@@ -53,6 +54,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=20)
     parser.add_argument("--realtime", action="store_true", help="run the commands under chrt -f 10")
+    parser.add_argument("--match", default="", help="only the commands containing this text")
+    parser.add_argument("--live", action="store_true",
+                        help="run and eval with live scopes in another process, saved to a .rrd file "
+                             "(no display needed; the scopes' work is the same as for a viewer)")
     args = parser.parse_args()
     sys.path.insert(0, str(DOUBLES))
     from board_server import BoardServer
@@ -88,7 +93,11 @@ def run_commands(args, cli: list[str], single_threaded: dict[str, str], server, 
     print(f"{args.runs} runs of each command{' under chrt -f 10' if args.realtime else ''}; another "
           f"process spins on core {cores[-1]}; "
           f"load average {os.getloadavg()[0]:.1f} at the start")
-    for command in documented_commands():
+    commands = documented_commands()
+    if args.live:
+        commands = [command + " --live scopes.rrd" for command in commands
+                    if command.split()[1] in ("run", "eval") and "--video" not in command]
+    for command in [command for command in commands if args.match in command]:
         successes, worst, errors, started = 0, 0.0, [], time.perf_counter()
         for _ in range(args.runs):
             result = subprocess.run(cli + shlex.split(command)[1:], env=environment, cwd=directory,

@@ -18,6 +18,10 @@ from typing import Any
 from qube_suite import devices
 from qube_suite.progress import Progress
 
+VIDEO_FPS = 30.0
+"""Video frames per second unless --fps says otherwise (or the control rate, if lower): smooth to the
+eye, and rendering every 4 ms control step would take eight times longer."""
+
 DEMO_PLOT = "qube_demo.png"
 """Where `qube-suite demo` writes its plot when matplotlib is installed."""
 
@@ -117,6 +121,11 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _frame_rate(text: str) -> float | str:
+    """--fps: a positive number, or "control" for one frame per control step."""
+    return text if text == "control" else _positive_float(text)
+
+
 def _frame_size(text: str) -> tuple[int, int]:
     try:
         width, height = (int(part) for part in text.lower().split("x"))
@@ -124,6 +133,13 @@ def _frame_size(text: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(f"must be WIDTHxHEIGHT in pixels, e.g. 640x480, got {text}") \
             from None
     return width, height
+
+
+def _presets() -> str:
+    """The randomization presets' names, for help texts."""
+    from qube_suite.randomization.presets import PRESETS
+
+    return ", ".join(PRESETS)
 
 
 def _add_hardware_arguments(parser: argparse.ArgumentParser) -> None:
@@ -178,24 +194,37 @@ def _make_policy(args: argparse.Namespace, environment: Any) -> tuple[Any, str]:
     from qube_suite.policies import load_policy
 
     if args.policy is not None:
-        return load_policy(args.policy), args.policy
-    controller = policy_for(args.controller, environment)
-    suited = getattr(controller, "tasks", ())
-    if suited and args.task not in suited:
-        print(f"qube-suite: note: controller {args.controller!r} is meant for {', '.join(suited)}",
-              file=sys.stderr)
-    return controller, args.controller
+        policy, name = load_policy(args.policy), args.policy
+    else:
+        policy, name = policy_for(args.controller, environment), args.controller
+    _note_if_meant_for_other_tasks(name, policy, args.task)
+    return policy, name
+
+
+def _note_if_meant_for_other_tasks(name: str, policy: Any, task: str) -> None:
+    """Tell the user on stderr when the controller or policy is meant for other tasks than `task`."""
+    from qube_suite.evaluation import meant_for
+    from qube_suite.tasks import SUITE
+
+    suited = meant_for(policy) if task in SUITE else ()  # an unknown task is an error of its own
+    if suited and task not in suited:
+        print(f"qube-suite: note: {name!r} is meant for {', '.join(suited)}", file=sys.stderr)
+
+
+def _count(number: int, noun: str) -> str:
+    """"1 episode", "2 episodes"."""
+    return f"{number} {noun}{'' if number == 1 else 's'}"
 
 
 def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
     """Files written about the episodes."""
     outputs = parser.add_argument_group("outputs")
     outputs.add_argument("--video", metavar="FILE.mp4",
-                         help="film the episodes into one mp4 (needs the media extra; rendering without "
-                              "a GPU is slow, so consider --fps)")
-    outputs.add_argument("--fps", type=_positive_float,
-                         help="video frames per second, at most the control rate (default: the control "
-                              "rate); steps between frames are skipped, playback stays at real speed")
+                         help="film the episodes into one mp4 (needs the media extra)")
+    outputs.add_argument("--fps", type=_frame_rate,
+                         help=f"video frames per second, at most the control rate, or 'control' for one "
+                              f"frame per control step (default: {VIDEO_FPS:g}, or the control rate if "
+                              f"lower); steps between frames are skipped, playback stays at real speed")
     outputs.add_argument("--camera", default="front_oblique",
                          help="video camera: front_oblique (default), front or top")
     outputs.add_argument("--size", type=_frame_size, default=(640, 480), metavar="WIDTHxHEIGHT",
@@ -225,10 +254,16 @@ def _video_recorder(args: argparse.Namespace, environment: Any):
     from qube_suite import media
 
     width, height = args.size
-    if args.fps is not None and args.fps > environment.control_frequency:
+    if args.fps is None:
+        fps = min(VIDEO_FPS, environment.control_frequency)
+    elif args.fps == "control":
+        fps = None  # one frame per control step
+    elif args.fps > environment.control_frequency:
         raise ValueError(f"--fps {args.fps:g} exceeds the control rate of "
                          f"{environment.control_frequency:g} Hz")
-    recorder = media.VideoRecorder(args.video, args.fps, args.camera, width, height)
+    else:
+        fps = args.fps
+    recorder = media.VideoRecorder(args.video, fps, args.camera, width, height)
     recorder.renderer.render(environment.physics)  # a wrong camera, size or OpenGL fails now
     return recorder
 
@@ -240,13 +275,14 @@ def media_films_after_episode(environment: Any) -> bool:
     return media.films_after_episode(environment)
 
 
-def _recorder(args: argparse.Namespace, environment: Any, policy_name: str):
-    """The episode recorder the arguments ask for, observing `environment`; None without --record."""
-    if args.record is None:
+def _recorder(args: argparse.Namespace, environment: Any, policy_name: str, path: str | None):
+    """The episode recorder writing `path` (--record, or --live's), observing `environment`; None
+    without a path."""
+    if path is None:
         return None
     from qube_suite import recording
 
-    return recording.Recorder(args.record, environment, metadata={
+    return recording.Recorder(path, environment, metadata={
         "domain": args.domain, "task": args.task, "policy": policy_name, "randomization": args.randomization,
         "board": args.board, "realtime": args.realtime})
 
@@ -254,7 +290,7 @@ def _recorder(args: argparse.Namespace, environment: Any, policy_name: str):
 def _write_outputs(args: argparse.Namespace, traces: list) -> None:
     """Write the files the arguments ask for from the episodes' traces; say where recordings went."""
     if args.record:
-        print(f"recording of {len(traces)} episode(s) written to {args.record}")
+        print(f"recording of {_count(len(traces), 'episode')} written to {args.record}")
     if args.plot:
         from qube_suite import plotting
 
@@ -263,13 +299,19 @@ def _write_outputs(args: argparse.Namespace, traces: list) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from qube_suite import episodes, suite
 
     _check_output_paths(args)
     if args.plot:  # a missing extra fails before the episodes run
         from qube_suite import extras
 
         extras.require("matplotlib", "--plot")
+    with _live_scope(args) as record:
+        return _run_episodes(args, record)
+
+
+def _run_episodes(args: argparse.Namespace, record: str | None) -> int:
+    from qube_suite import episodes, suite
+
     domain_kwargs = dict(REALTIME_DOMAIN_KWARGS.get(args.domain, {})) if args.realtime else {}
     domain_kwargs.update(_hardware_domain_kwargs(args))
     task_kwargs = {"random": args.seed, **_target_kwargs(args)}
@@ -279,7 +321,7 @@ def _run(args: argparse.Namespace) -> int:
     try:
         policy, name = _make_policy(args, environment)
         recorder = _video_recorder(args, environment)
-        episode_recorder = _recorder(args, environment, name)
+        episode_recorder = _recorder(args, environment, name, record)
         film_after = recorder is not None and media_films_after_episode(environment)
         hooks = [recorder] if recorder is not None and not film_after else []
         if args.realtime and args.domain not in REALTIME_DOMAIN_KWARGS:
@@ -335,13 +377,14 @@ def _add_run(commands) -> None:
     run.add_argument("--episodes", type=_positive_int, default=1, help="number of episodes (default: 1)")
     run.add_argument("--seed", type=int, default=0, help="seed of the first episode; then seed + 1, ... "
                                                          "(default: 0)")
-    run.add_argument("--randomization", help="a preset (none, mild, moderate, sim2real) or a YAML file")
+    run.add_argument("--randomization", help=f"a preset ({_presets()}) or a YAML file")
     _add_hardware_arguments(run)
     run.add_argument("--realtime", action="store_true",
                      help="keep to the wall clock: sleep in simulation, the substitute board's realtime "
                           "mode on qube_hardware")
     _add_target_arguments(run)
     _add_output_arguments(run)
+    _add_live(run)
     _add_quiet(run)
     run.set_defaults(run=_run)
 
@@ -408,15 +451,18 @@ def _eval(args: argparse.Namespace) -> int:
     from qube_suite.policies import load_policy
 
     policy = args.controller if args.policy is None else load_policy(args.policy)
-    result = evaluate(policy, domain=args.domain, task=args.task, episodes=args.episodes,
-                      seed=args.seed, progress=not args.quiet, task_kwargs=_target_kwargs(args),
-                      domain_kwargs=_hardware_domain_kwargs(args) or None)
+    _note_if_meant_for_other_tasks(args.controller or args.policy, policy, args.task)
+    with _live_scope(args) as record:
+        result = evaluate(policy, domain=args.domain, task=args.task, episodes=args.episodes,
+                          seed=args.seed, progress=not args.quiet, task_kwargs=_target_kwargs(args),
+                          domain_kwargs=_hardware_domain_kwargs(args) or None, record=record)
     summary = result.to_dict()
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
-        print(f"{summary['policy']} on {summary['domain']}/{summary['task']}, {summary['episodes']} episodes "
-              f"from seed {summary['seed']}:")
+        episodes = _count(summary["episodes"], "episode")
+        print(f"{summary['policy']} on {summary['domain']}/{summary['task']}, {episodes} from seed "
+              f"{summary['seed']}:")
         print(f"  return {summary['mean_return']:.1f} +- {summary['std_return']:.1f}, "
               f"success {100 * summary['success_rate']:.0f} %, compute per step "
               f"{summary['step_time_median_ms']:.3f} ms median, {summary['step_time_p99_ms']:.3f} ms p99")
@@ -437,6 +483,7 @@ def _add_eval(commands) -> None:
     evaluation.add_argument("--episodes", type=int, default=20, help="number of episodes (default: 20)")
     evaluation.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
     evaluation.add_argument("--json", action="store_true", help="print the result as JSON")
+    _add_live(evaluation)
     _add_target_arguments(evaluation)
     _add_hardware_arguments(evaluation)
     _add_quiet(evaluation)
@@ -516,7 +563,7 @@ def _add_train(commands) -> None:
                           help="environment steps (default: 2000000)")
     training.add_argument("--seed", type=int, default=None, help="seed (default: 0)")
     training.add_argument("--randomization", default=None,
-                          help="preset (mild, moderate, sim2real, wide) or YAML file (default: none)")
+                          help=f"preset ({_presets()}) or YAML file (default: none)")
     training.add_argument("--domain", choices=tuple(devices.domains()), default=None,
                           help="domain to train on (default: qube)")
     training.add_argument("--num-envs", type=_positive_int, default=None,
@@ -752,8 +799,123 @@ def _add_adapt(commands) -> None:
     adapt.set_defaults(run=_adapt)
 
 
-SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_train, _add_bench, _add_calibrate,
-               _add_check_board, _add_adapt, _add_recording)
+# -- live scopes and watch -----------------------------------------------------------------
+
+
+def _add_live(parser: argparse.ArgumentParser) -> None:
+    """--live: scopes in another process, fed by the recording (qube_suite.live)."""
+    parser.add_argument("--live", nargs="?", const="viewer", metavar="viewer|web|FILE.rrd",
+                        help="live scopes of theta, alpha, voltage, current, reward and LED and the digital "
+                             "twin, in another process fed by the recording (--record, else a temporary "
+                             "file): Rerun's viewer (default), its web viewer, or saved to a .rrd file "
+                             "(needs the live extra)")
+
+
+@contextlib.contextmanager
+def _live_scope(args: argparse.Namespace):
+    """The recording to write (`args.record`, or a temporary file with --live), while `watch` follows
+    it in another process; the watcher is told the recording is complete at the end."""
+    if not args.live:
+        yield getattr(args, "record", None)
+        return
+    import tempfile
+
+    from qube_suite import extras, live
+
+    extras.require("rerun", "--live", extra="live")
+    with tempfile.TemporaryDirectory(prefix="qube_suite_live_") as folder:
+        record = getattr(args, "record", None) or str(pathlib.Path(folder) / "live.jsonl")
+        pathlib.Path(record).write_text("")  # the watcher follows it from the start
+        watcher = live.start_watcher(record, args.live)
+        try:
+            yield record
+        finally:
+            live.finish_watcher(watcher)
+
+
+def _watch(args: argparse.Namespace) -> int:
+    from qube_suite import live
+
+    done = live.stdin_closed() if args.until_stdin_closes else None
+    sink = None if args.sink == "none" else args.sink
+    rows = live.watch(args.recording, follow=args.follow, done=done, sink=sink, save=args.save,
+                      twin=not args.no_twin)
+    print(f"{rows} rows of {args.recording} shown" + (f"; scopes saved to {args.save}" if args.save else ""))
+    return 0
+
+
+def _add_watch(commands) -> None:
+    watch = commands.add_parser(
+        "watch", help="live scopes of a recording being written (or a replay of a finished one)",
+        description="Show a recording's theta, alpha, voltage, current, reward and LED as scrolling plots "
+                    "of the last seconds, and the digital twin in the measured angles, in Rerun's viewer "
+                    "(needs the live extra: pip install 'qube_suite[live]').",
+        epilog="examples:\n  qube-suite watch balance.jsonl --follow     (while 'run ... --record "
+               "balance.jsonl' runs)\n  qube-suite watch balance.jsonl              (a replay)\n"
+               "  qube-suite watch balance.jsonl --sink web    (in a browser)\n"
+               "  qube-suite watch balance.jsonl --sink none --save balance.rrd",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    watch.add_argument("recording", help="a recording (run/eval/view --record)")
+    watch.add_argument("--follow", action="store_true",
+                       help="go on showing lines as they are written, until Ctrl-C")
+    watch.add_argument("--until-stdin-closes", action="store_true",
+                       help="with --follow: stop once standard input closes (how run --live ends it)")
+    watch.add_argument("--sink", choices=("viewer", "web", "none"), default="viewer",
+                       help="Rerun's viewer (default), its web viewer served on this machine, or none")
+    watch.add_argument("--save", metavar="FILE.rrd", help="also save the scopes (replay: rerun FILE.rrd)")
+    watch.add_argument("--no-twin", action="store_true", help="no digital twin (it needs OpenGL)")
+    watch.set_defaults(run=_watch)
+
+
+# -- view ------------------------------------------------------------------------------------
+
+
+def _view(args: argparse.Namespace) -> int:
+    from qube_suite import viewer
+
+    if args.record:
+        _check_output_paths(argparse.Namespace(video=None, plot=None, record=args.record))
+    result = viewer.view(args.task, domain=args.domain, controller=args.controller, policy=args.policy,
+                         teleop=args.teleop, randomization=args.randomization, seconds=args.seconds,
+                         record=args.record, seed=args.seed)
+    print(f"{result.simulated_time:.2f} s simulated in {result.wall_time:.2f} s of wall-clock time "
+          f"(pauses excluded), {_count(result.episodes, 'episode')}"
+          + (f"; recording written to {args.record}" if args.record else ""))
+    return 0
+
+
+def _add_view(commands) -> None:
+    from qube_suite.viewer import KEYS
+
+    keys = "\n".join(f"  {key:16s}{meaning}" for key, meaning in KEYS)
+    view = commands.add_parser(
+        "view", help="watch and drive the simulated Qube in a window, at real time",
+        description="Open MuJoCo's viewer on a task at real time, with a controller or policy in the loop "
+                    "and/or the keyboard driving the motor; theta, alpha, voltage, reward and return are "
+                    "shown over the scene. On macOS run it with mjpython: "
+                    "'mjpython -m qube_suite.cli view ...'.",
+        epilog=f"keys:\n{keys}\n\nexamples:\n"
+               "  qube-suite view --task swingup --teleop\n"
+               "  qube-suite view --task swingup --controller swingup --teleop\n"
+               "  qube-suite view --task balance --policy runs/balance/policy.npz --randomization mild\n"
+               "  qube-suite view --task swingup --teleop --seconds 30 --record drive.jsonl",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    view.add_argument("--task", required=True, help="a task of 'qube-suite list', e.g. swingup")
+    view.add_argument("--domain", choices=("qube", "qube_hardware"), default="qube",
+                      help="qube (default) or qube_hardware: the substitute board, shown as its digital twin")
+    actor = view.add_mutually_exclusive_group()
+    actor.add_argument("--controller", help="a controller or shipped policy, e.g. swingup or ppo:balance")
+    actor.add_argument("--policy", metavar="FILE.npz", help="a learned policy file")
+    view.add_argument("--teleop", action="store_true", help="drive the motor with the arrow keys")
+    view.add_argument("--randomization", help=f"a preset ({_presets()}) or a YAML file")
+    view.add_argument("--seconds", type=_positive_float, help="stop after this much simulated time (s)")
+    view.add_argument("--record", metavar="FILE.jsonl", help="record every step (the format of run --record)")
+    view.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
+    view.set_defaults(run=_view)
+
+
+SUBCOMMANDS = (_add_demo, _add_list, _add_run, _add_eval, _add_view, _add_watch, _add_train, _add_bench,
+               _add_calibrate, _add_check_board, _add_adapt, _add_recording)
 """Parser builders of the subcommands, in the order `--help` lists them."""
 
 
@@ -789,6 +951,14 @@ def _exit_cleanly_on_sigterm():
         signal.signal(signal.SIGTERM, previous)
 
 
+def _message(error: BaseException) -> str:
+    """What to tell the user: an operating-system error on a file as "FILE: what went wrong"
+    rather than Python's "[Errno N] ..."."""
+    if isinstance(error, OSError) and error.filename is not None and error.strerror:
+        return f"{error.filename}: {error.strerror}"
+    return str(error)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line with `argv` (default: `sys.argv[1:]`); return the exit code."""
     from qube_suite.hardware.errors import HardwareError
@@ -798,7 +968,7 @@ def main(argv: list[str] | None = None) -> int:
         with _exit_cleanly_on_sigterm():
             return args.run(args)
     except (ValueError, OSError, ImportError, HardwareError) as error:
-        print(f"qube-suite: error: {' '.join(str(error).split())}", file=sys.stderr)  # one line
+        print(f"qube-suite: error: {' '.join(_message(error).split())}", file=sys.stderr)  # one line
         return 2
     except KeyboardInterrupt:
         print("qube-suite: interrupted", file=sys.stderr)

@@ -13,6 +13,7 @@ from dm_env import specs
 from qube_suite import randomization as randomization_
 from qube_suite.arguments import is_number
 from qube_suite.capabilities import Closable
+from qube_suite.domains.interface import SeededSubstitute
 from qube_suite.episode_rules import judge_step
 from qube_suite.tasks.base import voltage_from_action
 
@@ -94,6 +95,7 @@ class Environment(control.Environment):
             randomization_.load(randomization), physics, 1.0 / self._control_frequency)
         self._randomization_sample = None
         self._episode_seed: int | None = None
+        self._seeded_random = task.random  # a different object later: reseeded from outside (shimmy)
         self.observers: list = []
     @property
     def control_frequency(self) -> float:
@@ -150,11 +152,15 @@ class Environment(control.Environment):
         if seed is not None:
             self._task.random.seed(seed)
         self._episode_seed = seed
+        reseeded = seed is not None or self._task.random is not self._seeded_random
+        self._seeded_random = self._task.random
+        if reseeded and isinstance(self._physics, SeededSubstitute):
+            self._physics.seed_substitute(int(self._task.random.randint(2**31)))
         if self._randomizer is not None:
             self._randomization_sample = self._randomizer.draw(self._task.random)
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics)
-        self._physics.set_led(reward_colour(self._task.get_reward(self._physics)))
+        self._show(self._task.get_reward(self._physics))
         self._reset_next_step = False
         for observer in self.observers:
             observer.episode_started(self)
@@ -209,12 +215,18 @@ class Environment(control.Environment):
         self._reset_next_step = True
         self._physics.end_episode()
 
+    def _show(self, reward: float) -> None:
+        """The reward on the LED, and with the task's `visualize_reward` in dm_control's colours."""
+        self._physics.set_led(reward_colour(reward))
+        if self._task.visualize_reward:
+            self._physics.show_reward(reward)
+
     def _finish_step(self, action) -> tuple[float, float | None]:
         physics = self._physics
         self._step_count += 1
         reward, terminated, truncated = judge_step(self._task, physics, physics.physics_error is not None,
                                                    self._step_count, self._episode_steps)
-        physics.set_led(reward_colour(reward))
+        self._show(reward)
         discount = 0.0 if terminated else 1.0 if truncated else None
         if discount is not None:
             self._reset_next_step = True

@@ -20,13 +20,14 @@ return hides it: the arm's share of the reward is small).
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from qube_suite import baselines, suite
+from qube_suite import baselines, recording, suite
 from qube_suite.policies import load_policy, names_a_policy, shipped
 from qube_suite.progress import Progress
 from qube_suite.tasks.base import success_steps
@@ -92,10 +93,23 @@ def policy_for(spec: str, environment) -> Callable[[Any], float]:
                      f"{', '.join(shipped()) or 'none'}; or give the path of a .npz policy file")
 
 
+def meant_for(policy: str | Callable[[Any], float]) -> tuple[str, ...]:
+    """The tasks a controller (by name), learned policy (by name or file) or policy object is
+    meant for; () for any task, or for a name `policy_for` will refuse."""
+    if isinstance(policy, str):
+        if policy in baselines.CONTROLLERS:
+            return tuple(getattr(baselines.CONTROLLERS[policy], "tasks", ()))
+        if not names_a_policy(policy):
+            return ()
+        policy = load_policy(policy)
+    return tuple(getattr(policy, "tasks", ()))
+
+
 def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: str = "swingup",
              episodes: int = 20, seed: int = 0, randomization: Any = None,
              task_kwargs: dict[str, Any] | None = None, environment_kwargs: dict[str, Any] | None = None,
-             progress: bool = False, domain_kwargs: dict[str, Any] | None = None) -> EvaluationResult:
+             progress: bool = False, domain_kwargs: dict[str, Any] | None = None,
+             record: str | os.PathLike | None = None) -> EvaluationResult:
     """Run `episodes` episodes (seeds `seed`, `seed + 1`, ...) of `policy` and score them.
 
     Args:
@@ -108,6 +122,7 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
             `suite.load` (e.g. `domain_kwargs={"plant": {...}}` for the hardware substitute).
         progress: show progress on stderr (`qube_suite.progress`: a bar on a terminal,
             a line per 10 % otherwise).
+        record: write every step to this file as it runs (`qube_suite.recording`).
 
     The environment is closed at the end, also when the policy raises or Ctrl-C lands: on
     hardware the motor stops and the board closes.
@@ -117,9 +132,15 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
     environment = suite.load(domain, task, task_kwargs={"random": seed, **(task_kwargs or {})},
                              environment_kwargs=environment_kwargs, randomization=randomization,
                              domain_kwargs=domain_kwargs)
+    recorder = None
     try:  # on hardware, whatever happens, the motor stops and the board closes
+        if record is not None:
+            recorder = recording.Recorder(record, environment, metadata={
+                "domain": domain, "task": task, "policy": policy if isinstance(policy, str) else None})
         return _evaluate(policy, environment, domain, task, episodes, seed, progress)
     finally:
+        if recorder is not None:
+            recorder.close()
         environment.close()
 
 

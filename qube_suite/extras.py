@@ -15,8 +15,8 @@ def available(module: str) -> bool:
     return importlib.util.find_spec(module) is not None
 
 
-def require(module: str, purpose: str) -> ModuleType:
-    """Import `module`, or raise ImportError saying that `purpose` needs the `media` extra."""
+def require(module: str, purpose: str, extra: str = "media") -> ModuleType:
+    """Import `module`, or raise ImportError saying that `purpose` needs the `extra` (default: media)."""
     if not available(module):
-        raise ImportError(f"{purpose} needs {module.split('.')[0]}: {MEDIA_HINT}")
+        raise ImportError(f"{purpose} needs {module.split('.')[0]}: pip install 'qube_suite[{extra}]'")
     return importlib.import_module(module)

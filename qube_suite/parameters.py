@@ -31,6 +31,8 @@ import types
 from collections.abc import Mapping
 from typing import Any
 
+from qube_suite import files
+
 
 @dataclasses.dataclass(frozen=True)
 class Parameter:
@@ -158,10 +160,7 @@ def values_of(source: Mapping[str, float] | str | os.PathLike | Any | None) -> d
     if source is None:
         return {}
     if isinstance(source, (str, os.PathLike)):
-        import yaml
-
-        with open(source, encoding="utf-8") as file:
-            content = yaml.safe_load(file)
+        content = files.read_yaml(source, "calibration")
         if not isinstance(content, Mapping) or not isinstance(content.get("parameters"), Mapping):
             raise ValueError(f"{os.fspath(source)} is not a calibration file: it has no 'parameters' mapping")
         return dict(content["parameters"])

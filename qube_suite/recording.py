@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from qube_suite import files
 from qube_suite.capabilities import HasBoard
 
 FORMAT = "qube_suite.recording"
@@ -209,8 +210,7 @@ def load_recording(path: str | os.PathLike) -> Recording:
     Raises ValueError if the file is not a qube_suite recording or a line before the last one is
     damaged.
     """
-    with open(path, "rb") as file:
-        lines = file.read().split(b"\n")
+    lines = files.read_bytes(path, "recording").split(b"\n")
     truncated = lines[-1] != b""  # a complete file ends with a newline
     values = []
     for number, line in enumerate(lines[:-1], start=1):

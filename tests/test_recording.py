@@ -152,7 +152,7 @@ def test_run_records_its_episodes_from_the_command_line(tmp_path, capsys):
     argv = ["run", "--task", "balance", "--controller", "balance", "--episodes", "2", "--seed", "4",
             "--record", str(path)]
     assert cli.main(argv) == 0
-    assert f"recording of 2 episode(s) written to {path}" in capsys.readouterr().out
+    assert f"recording of 2 episodes written to {path}" in capsys.readouterr().out
     saved = recording.load_recording(path)
     assert saved.metadata["task"] == "balance" and saved.metadata["policy"] == "balance"
     assert [episode.header["seed"] for episode in saved.episodes] == [4, 5]

@@ -139,8 +139,8 @@ def test_shimmy_round_trip_including_close(domain):
     native = suite.load(domain, "balance", task_kwargs={"random": 11})
     env = gymnasium.make("dm_control/compatibility-env-v0", env=native)
     reference = suite.load(domain, "balance", task_kwargs={"random": 11})
-    observation, _ = env.reset(seed=11)
-    np.testing.assert_array_equal(observation["state"], reference.reset().observation["state"])
+    observation, _ = env.reset(seed=11)  # a seeded reset, also for the substitute board
+    np.testing.assert_array_equal(observation["state"], reference.reset(seed=11).observation["state"])
     for _ in range(20):
         observation, reward, terminated, truncated, _ = env.step(np.array([0.4]))
         expected = reference.step(np.array([0.4]))

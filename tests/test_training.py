@@ -1,7 +1,9 @@
 """`qube-suite train` and the export of SB3 policies to numpy; training tests skip without the `rl` extra."""
 
+import gc
 import importlib.util
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -82,6 +84,17 @@ def test_train_cli_runs_a_tiny_training(tmp_path, capsys, algo):
     policy = load_policy(out / "policy.npz")
     assert policy.meta["algo"] == algo and policy.meta["training"]["seed"] == 3
     assert abs(policy([0.0, 0.1, 0.0, 0.0])) <= 3.0
+
+
+@needs_rl
+def test_training_closes_its_log_files(tmp_path):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        training.train("balance", steps=64, num_envs=1, evaluations=1, eval_episodes=1, checkpoints=1,
+                       progress=False, hyperparameters={"n_steps": 64}, out=tmp_path)
+        gc.collect()
+    unclosed = [str(warning.message) for warning in caught if issubclass(warning.category, ResourceWarning)]
+    assert unclosed == []
 
 
 @pytest.mark.slow

@@ -32,6 +32,7 @@ import os
 from collections.abc import Mapping
 from typing import Any
 
+from qube_suite import files
 from qube_suite import parameters as params
 from qube_suite.calibration.fit import VOLTAGE_NAMES
 from qube_suite.calibration.identifiability import FITTED, FIXED
@@ -124,10 +125,7 @@ def randomization_path(path: str | os.PathLike) -> str:
 
 def load(path: str | os.PathLike) -> Calibration:
     """The calibration saved at `path`. Raises ValueError if it is not a calibration file."""
-    import yaml
-
-    with open(path, encoding="utf-8") as file:
-        data = yaml.safe_load(file)
+    data = files.read_yaml(path, "calibration")
     if not isinstance(data, Mapping) or data.get("format") != FORMAT:
         raise ValueError(f"{os.fspath(path)} is not a qube_suite calibration (format {FORMAT!r})")
     parameters = params.resolve({name: float(value) for name, value in data["parameters"].items()})

@@ -13,7 +13,7 @@ written to accept either.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -85,6 +85,14 @@ class QubePhysics(Protocol):
 
     def close(self) -> None:
         """Release the Qube: on hardware, stop the motor and close the board."""
+
+
+@runtime_checkable
+class SeededSubstitute(Protocol):
+    """A domain whose Qube can be put back where a seed says (the hardware domain's substitute
+    board): `seed_substitute(seed)` before a reset makes a seeded episode repeatable."""
+
+    def seed_substitute(self, seed: int) -> None: ...
 
 
 class MeasuredState:

@@ -46,6 +46,9 @@ the motor's no-load speed at 10 V (238 rad/s). MuJoCo's automatic reset is off i
 diverged state stays (huge, inf or NaN) and fails this check."""
 
 
+REWARD_MATERIALS = ("self", "effector", "target")
+"""The materials dm_control's reward visualisation colours (`Physics.show_reward`; the pendulum is "self")."""
+
 class Physics(MeasuredState, dm_mujoco.Physics):
     """MuJoCo physics of the Qube with accessors that read like the Qube.
 
@@ -238,6 +241,14 @@ class Physics(MeasuredState, dm_mujoco.Physics):
     def set_led(self, rgb: Sequence[float]) -> None:
         """Colour the LED strip, (r, g, b) in [0, 1]; the model's geom takes it at the next `draw_led`."""
         self._led = rgb
+
+    def show_reward(self, reward: float) -> None:
+        """dm_control's reward colours (a task's `visualize_reward`): each of `REWARD_MATERIALS` blended
+        from its `_default` to its `_highlight` colour by reward^4, the reward clipped to [0, 1]."""
+        blend = min(max(float(reward), 0.0), 1.0) ** 4
+        colours = self.named.model.mat_rgba
+        for name in REWARD_MATERIALS:
+            colours[name] = blend * colours[f"{name}_highlight"] + (1.0 - blend) * colours[f"{name}_default"]
 
     def led(self) -> tuple[float, float, float]:
         """The LED strip's (r, g, b)."""

@@ -123,6 +123,10 @@ HOLD_TIME = 0.5
 """A reset is done when its condition has held this long (s)."""
 
 ARM_CENTRE_TOLERANCE = math.radians(5.0)
+
+SUBSTITUTE_ARM_SPREAD = math.radians(3.0)
+"""Where a seeded episode finds the substitute's arm: within this of centre (rad), inside the
+centring tolerance, as a person leaves a Qube after putting it back."""
 """With the encoder check on, every reset first centres the arm to within 5 degrees of its zero (the
 reset controllers leave it within about 1 degree on the substitute; the cable's spring and the arm's
 friction hold it there)."""
@@ -306,6 +310,7 @@ class Physics(MeasuredState, control.Physics):
         self._samples = 0
         self._episode_start = 0
         self._twin = None
+        self._substitute_seed: int | None = None
         self.currents = np.zeros(1)
         self.encoders = np.zeros(2, dtype=np.int32)
         self.others = np.zeros(len(DEVICES[device].other_inputs))
@@ -403,6 +408,7 @@ class Physics(MeasuredState, control.Physics):
                 self._zero_at_open = False  # zeroed once: from now on the board's counts hold
             else:
                 self.qube.resume()
+            self._restart_substitute()
             self._led_shown = None
             self._estimator.reset()  # the Qube moved on while the board idled: estimate it afresh
             self._sample(0.0, returning=True)
@@ -412,6 +418,21 @@ class Physics(MeasuredState, control.Physics):
             self._stop_after(error)
             raise
         self._voltage = 0.0
+
+    def seed_substitute(self, seed: int) -> None:
+        """At the next `reset`, on the substitute board only: reseed its noise and put its Qube hanging
+        at rest with the arm within `SUBSTITUTE_ARM_SPREAD` of centre, both drawn from `seed`, so that
+        a seeded episode starts the same way every time and seeds start differently. A real Qube is
+        where it is: nothing changes."""
+        self._substitute_seed = int(seed)
+
+    def _restart_substitute(self) -> None:
+        seed, self._substitute_seed = self._substitute_seed, None
+        if seed is None or self.qube.board_name != SIMULATED:
+            return
+        arm = np.random.default_rng(seed).uniform(-SUBSTITUTE_ARM_SPREAD, SUBSTITUTE_ARM_SPREAD)
+        self.qube.board.seed(seed)
+        self.qube.board.set_true_state([arm, math.pi, 0.0, 0.0])
 
     def after_reset(self) -> None:
         """Nothing to do: `reset_to` leaves the board at the episode's start."""
@@ -477,6 +498,16 @@ class Physics(MeasuredState, control.Physics):
         twin.reset_to(self._estimate)
         twin.set_led(self._led)
         return twin.drawable()
+
+    def render(self, *args: Any, **kwargs: Any) -> np.ndarray:
+        """An image of the digital twin (`drawable()`), with dm_control's `Physics.render` arguments:
+        what shimmy's and dm_control's tools draw. Never inside the control loop: it takes longer
+        than a sample."""
+        return self.drawable().render(*args, **kwargs)
+
+    def show_reward(self, reward: float) -> None:
+        """dm_control's reward colours (a task's `visualize_reward`) on the digital twin."""
+        self._digital_twin().show_reward(reward)
 
     def _digital_twin(self):
         if self._twin is None:

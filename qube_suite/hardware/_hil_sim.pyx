@@ -859,6 +859,16 @@ cdef class HIL:
                 self.s.x[j] = values[j]
             self.s.x[4] = 0.0
 
+    def seed(self, seed):
+        """Reseed the board's random stream (the bench's sway) and calm the sway: with the same plant
+        state, the same seed gives the same run."""
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**64:
+            raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
+        with self.lock:
+            self._sync()
+            self.s.random_state = int(seed)
+            self.s.sway = 0.0
+
     # -- fault injection (not part of Quanser's API; see the module docstring) ------------
 
     def set_amplifier_fault(self, fault):

@@ -316,7 +316,9 @@ class QuanserWrapper:
                  max_missed_samples: int | None = 10, max_encoder_speed: float | None = MAX_ENCODER_SPEED,
                  zero_encoders: bool = False):
         if board not in (SIMULATED, device.board_type):
-            raise ValueError(f"board must be {SIMULATED!r} or {device.board_type!r}, got {board!r}")
+            cards = ", ".join(f"{d.board_type} for {name}" for name, d in DEVICES.items())
+            raise ValueError(f"board must be {SIMULATED!r} or {device.board_type!r}, got {board!r} "
+                             f"(the Qubes' cards: {cards})")
         simulated = board == SIMULATED
         if not simulated and plant is not None:
             raise ValueError("plant= sets the substitute board's plant; a real board has its own physics")

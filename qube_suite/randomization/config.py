@@ -27,6 +27,7 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
+from qube_suite import files
 from qube_suite import parameters as params
 from qube_suite.randomization.base import Field
 from qube_suite.randomization.catalog import EFFECTS
@@ -59,7 +60,8 @@ def load(spec: Randomization | Mapping | str | os.PathLike) -> Randomization:
     """A validated `Randomization` from a preset name, a mapping, a YAML file's path, or itself.
 
     Raises ValueError for an unknown preset, name or key (listing the valid ones)
-    and for impossible values or ranges; FileNotFoundError for a missing file.
+    and for impossible values or ranges; MissingFileError (a FileNotFoundError and a ValueError)
+    for a missing file.
     """
     if isinstance(spec, Randomization):
         return spec
@@ -192,9 +194,4 @@ def _read_yaml(path: pathlib.Path):
         """Safe loading that reads 1e-3 as a number, as YAML 1.2 does."""
 
     Loader.add_implicit_resolver("tag:yaml.org,2002:float", _YAML_FLOAT, list("-+0123456789."))
-    with path.open() as file:
-        try:
-            return yaml.load(file, Loader=Loader)
-        except yaml.YAMLError as error:  # malformed, or a tag such as !!python/object (safe loading)
-            detail = " ".join(str(error).split())
-            raise ValueError(f"{path} is not a valid randomization YAML file: {detail}") from None
+    return files.read_yaml(path, "randomization", Loader)

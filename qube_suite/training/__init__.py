@@ -255,6 +255,7 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     finally:
         venv.close()
         eval_venv.close()
+        model.logger.close()  # its CSV and TensorBoard files
     best = out / "best_policy.npz"
     summary = {**record, "steps": int(model.num_timesteps), "wall_time_s": wall_time,
                "best_mean_return": float(evaluation.best_mean_reward)}

@@ -13,6 +13,7 @@ from gymnasium import spaces
 from qube_suite.conventions import ACTION_SHAPE
 from qube_suite.environment import Environment
 from qube_suite.media import DEFAULT_CAMERA, FrameRenderer
+from qube_suite.pacing import RealTimePacer
 from qube_suite.tasks.base import voltage_from_action
 
 RENDER_MODES = ("human", "rgb_array")
@@ -77,7 +78,8 @@ class QubeEnv(gymnasium.Env):
     "front" or "top") of `width` x `height` (`qube_suite.media.FrameRenderer`; the
     LED strip shows the LED's colour, and on hardware a digital twin shows the
     measured state); `"human"` opens MuJoCo's viewer (offered only where a display
-    exists).
+    exists) and shows every control step at real time (`metadata["render_fps"]`, the control
+    rate), as Gymnasium's MuJoCo environments do.
 
     Args:
         environment: a qube_suite dm_env environment (`suite.load`).
@@ -100,6 +102,7 @@ class QubeEnv(gymnasium.Env):
         self.render_mode = render_mode
         self._frames = FrameRenderer(camera, int(width), int(height)) if render_mode == "rgb_array" else None
         self._viewer = None
+        self._pacer = RealTimePacer()  # "human": one frame per control step, at real time
         self._closed = False
         self._follows_target = getattr(environment.task, "follows_target", False)
         self.metadata = {
@@ -124,6 +127,7 @@ class QubeEnv(gymnasium.Env):
         self.environment.start_episode(seed)
         if self.render_mode == "human":
             self.render()
+            self._pacer.restart(self.physics.time())
         info = self._info()
         drawn = self.environment.randomization_sample
         if drawn is not None:
@@ -169,6 +173,8 @@ class QubeEnv(gymnasium.Env):
 
                 self._viewer = viewer.launch_passive(scene.model.ptr, scene.data.ptr)
             self._viewer.sync()
+            if not getattr(self.physics, "paced_by_board", False):  # a board keeps its own time
+                self._pacer.wait(self.physics.time())
         return None
 
     def close(self):
