@@ -49,12 +49,12 @@ _PAIRS = {
     "BENCHMARKING": lambda: tagged("benchmarking"),
     "SPARSE": lambda: tagged("sparse"),
     "FOLLOW": lambda: tagged("follow"),
-    "REWARD_VIZ": lambda: tuple((domain, task) for domain, task in tagged("benchmarking") if domain == "qube"),
+    "REWARD_VIZ": lambda: tuple(pair for pair in tagged("benchmarking") if pair[0] == "qube"),
 }
 """dm_control's tuples of (domain, task) pairs, read at every access: `ALL_TASKS`, `BENCHMARKING` (the
-dense tasks), `SPARSE` (the sparse-reward variants), `FOLLOW` (the tasks with a moving arm target), `REWARD_VIZ` (the tasks whose `visualize_reward`
-dm_control's suite tests check, in simulation; every task and the hardware domain's digital twin have
-it too: the pendulum's colour blends with the reward)."""
+dense tasks), `SPARSE` (the sparse-reward variants), `FOLLOW` (the tasks with a moving arm target),
+`REWARD_VIZ` (the tasks whose `visualize_reward` dm_control's suite tests check, in simulation; every
+task and the hardware domain's digital twin have it too: the pendulum's colour blends with the reward)."""
 
 
 def __getattr__(name: str):
