@@ -61,6 +61,9 @@ PUSH_TIME = 0.02
 TEXT_PERIOD = 1 / 15
 """Wall-clock time between updates of the text overlay (s): the viewer takes a frame (about 16 ms)
 to accept new text, far longer than a control period, so it is not written at every step."""
+VIEWER_CLOSE_TIMEOUT = 10.0
+"""Longest wait for MuJoCo's viewer to close its window after the view ends (s)."""
+
 CAMERA = "front_oblique"
 """The camera the window opens with (Escape frees it to the mouse, as in MuJoCo's viewer)."""
 SPEEDS = (1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0, 2.0, 4.0)
@@ -170,16 +173,21 @@ def _run(environment: Any, actor: Any, teleop: bool, seconds: float | None, seed
     keys: queue.SimpleQueue[int] = queue.SimpleQueue()
     controls = Controls(teleop=teleop, voltage_limit=environment.task.voltage_limit)
     scene = environment.physics.drawable()
+    before = set(threading.enumerate())
     with launch(scene.model.ptr, scene.data.ptr, key_callback=keys.put,
                 show_left_ui=False, show_right_ui=False) as window:
+        viewer_threads = set(threading.enumerate()) - before
         with window.lock():
             window.cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
             window.cam.fixedcamid = mujoco.mj_name2id(scene.model.ptr, mujoco.mjtObj.mjOBJ_CAMERA, CAMERA)
         overlay = _Overlay(window)
         try:
-            return _loop(environment, actor, controls, keys, window, overlay, seconds, seed)
+            result = _loop(environment, actor, controls, keys, window, overlay, seconds, seed)
         finally:
             overlay.close()
+    for thread in viewer_threads:  # the viewer tears its window and OpenGL context down in its own
+        thread.join(VIEWER_CLOSE_TIMEOUT)  # thread: an interpreter exiting meanwhile crashes or hangs
+    return result
 
 
 def _loop(environment: Any, actor: Any, controls: Controls, keys: queue.SimpleQueue, window: Any,

