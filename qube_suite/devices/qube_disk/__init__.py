@@ -16,5 +16,7 @@ DEVICE = Device(
     hardware="qube_suite.devices.qube_disk.hardware",
     tasks="qube_suite.devices.qube_disk.tasks",
     gymnasium_prefix="Disk",
+    feature_map="plain",
+    controllers="qube_suite.devices.qube_disk.controllers",
 )
 """The disk: Gymnasium ids `QubeSuite/Disk<Task>[Hardware]-v0`."""

@@ -5,17 +5,15 @@ above, *not* wrapped (the disk turns freely; 0 where its episode's reference is)
 (rad/s) its speed. Action: the motor voltage (V), shape (1,), positive driving theta positive,
 as on the pendulum (`qube_suite.conventions`).
 
-On a board the disk is the motor's shaft, so it reads like the pendulum's arm: encoder 0,
-2048 counts per revolution, the board's positive direction is -theta
-(`qube_suite.hardware.conventions`, which the substitute board also follows); the pendulum's
-encoder is absent (channel 1 is not read).
+On a board the disk is the motor's shaft, so it reads as the pendulum's arm does: encoder 0
+(2048 counts per revolution) and the motor voltage with the arm's sign
+(`qube_suite.hardware.conventions.arm_angle` and `board_voltage`, which the substitute board also
+follows); the pendulum's encoder is absent (channel 1 is not read).
 """
 
 from __future__ import annotations
 
 import math
-
-from qube_suite.hardware import conventions as board
 
 STATE_NAMES = ("disk_angle", "disk_velocity")
 """The state's entries: theta (rad), dtheta (rad/s)."""
@@ -26,24 +24,9 @@ ACTION_NAMES = ("voltage",)
 ENCODER = 0
 """The board's encoder channel on the motor shaft."""
 
-RADIANS_PER_COUNT = board.RADIANS_PER_COUNT
-"""The motor's encoder: 2048 counts per revolution."""
-
-SIGN = board.ARM_SIGN
-"""The board's positive motor direction (voltage, encoder 0, tachometer) is -theta."""
-
 MAX_SPEED = 300.0
 """Largest |dtheta| (rad/s) of a plausible disk: above the motor's no-load 238 rad/s at 10 V."""
 
 POSITION_LIMIT = 4.0 * math.pi
 """The position tasks end (terminate) when the disk is more than two turns from its reference."""
 
-
-def disk_angle(counts: float) -> float:
-    """theta (rad) from encoder 0 counts."""
-    return SIGN * RADIANS_PER_COUNT * counts
-
-
-def counts_of(angle: float) -> int:
-    """Encoder 0 counts that read as theta = `angle` (rad)."""
-    return round(angle / (SIGN * RADIANS_PER_COUNT))

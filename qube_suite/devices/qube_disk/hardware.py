@@ -26,6 +26,7 @@ from qube_suite.arguments import is_number, keywords_of
 from qube_suite.devices.qube_disk import conventions
 from qube_suite.devices.qube_disk.substitute import plant_overrides
 from qube_suite.domains.qube import check_control_frequency
+from qube_suite.hardware import conventions as board_conventions
 from qube_suite.hardware.errors import HardwareError
 from qube_suite.hardware.quanser import DEVICES, SIMULATED, QuanserWrapper
 from qube_suite.velocity_filter import VelocityFilter
@@ -257,10 +258,11 @@ class Physics(control.Physics):
                 raise
 
     def _sample(self, volts: float) -> None:
-        self.currents, self.encoders, self.others = self.qube.action([conventions.SIGN * volts], led=self._led)
+        self.currents, self.encoders, self.others = self.qube.action([board_conventions.board_voltage(volts)],
+                                                                      led=self._led)
         limit = self.qube.max_voltage
         self._applied = -limit if volts < -limit else limit if volts > limit else volts
-        self._angle = conventions.disk_angle(int(self.encoders[0])) + self._offset
+        self._angle = board_conventions.arm_angle(int(self.encoders[0])) + self._offset
         self._speed = float(self._filter(np.array([self._angle]))[0])
         self._samples += 1
 

@@ -38,6 +38,10 @@ SPEED_TOLERANCE = 2.0
 DEFAULT_TARGET_SPEED = 40.0
 """The speed tasks' default target (rad/s): 1.7 V at steady state, within the default 3 V."""
 
+SETTLED_FRACTION = 0.8
+"""A position episode succeeds when the disk was within the goal set for 80 % of its steps: it settles
+quickly after each change of target (the default schedule changes it every 2 s)."""
+
 START_NOISE = 0.01
 """Position tasks start at rest with theta uniform within +-0.01 rad."""
 
@@ -139,6 +143,7 @@ class Position(DiskTask):
 
     ## Episode end
     Terminates (discount 0) when |theta| > 4 pi (two turns off); truncated at the time limit.
+    Success (`qube_suite.evaluation`): within 3 degrees of the target for 80 % of the steps.
 
     ## Arguments
     `voltage_limit`, `random`, and the target schedule of the follow tasks
@@ -185,6 +190,11 @@ class Position(DiskTask):
         """Whether the disk is within 3 degrees of its target."""
         return abs(self.error(physics)) <= POSITION_TOLERANCE
 
+    def succeeded(self, at_goal, terminated: bool, control_frequency: float) -> bool:
+        """Whether the finished episode did not terminate and the disk was within 3 degrees of its target
+        for at least `SETTLED_FRACTION` of its steps."""
+        return not terminated and len(at_goal) > 0 and float(np.mean(at_goal)) >= SETTLED_FRACTION
+
     def in_safe_set(self, physics):
         return abs(physics.disk_angle()) <= POSITION_LIMIT
 
@@ -220,6 +230,7 @@ class Speed(DiskTask):
 
     ## Episode end
     Never terminates on a plausible disk (|dtheta| <= 300 rad/s); truncated at the time limit.
+    Success (`qube_suite.evaluation`): within 2 rad/s of the target throughout the last 2 s.
 
     ## Arguments
     `voltage_limit`, `random`, `target_speed` (rad/s, |target_speed| <= 200, default 40).
