@@ -184,8 +184,8 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
         exploring_starts = EXPLORING_STARTS.get(task, 0.0)
     starts = exploring_starts if domain == "qube" else 0.0
     feature_map = devices.domain(domain).device.feature_map
-    venv = make_vec_env(task, num_envs, seed, feature_map=feature_map, exploring_starts=starts, history=history,
-                        **env_kwargs)
+    venv = make_vec_env(task, num_envs, seed, feature_map=feature_map, exploring_starts=starts,
+                        history=history, **env_kwargs)
     checkpoint = warm_start.latest_checkpoint(out / "checkpoints", algo) if resume else None
     if checkpoint is not None:
         venv = warm_start.load_checkpoint_normalization(checkpoint, venv)

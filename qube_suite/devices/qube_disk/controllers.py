@@ -83,7 +83,7 @@ class PositionPD(DiskController):
     """V = kp (theta_target - theta) - kd dtheta, placing the closed loop's poles at natural frequency
     `bandwidth` (rad/s) with damping ratio `damping`: kp = wn^2 tau / K, kd = (2 zeta wn tau - 1) / K.
 
-    Args: as `DiskController`, and `bandwidth` (rad/s, default 20), `damping` (default 0.8).
+    Args: as `DiskController`, and `bandwidth` (rad/s, default 30), `damping` (default 0.8).
     """
 
     name = "pd"
@@ -91,7 +91,8 @@ class PositionPD(DiskController):
     observation_size = 3
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
-                 parameters: Mapping[str, float] | None = None, bandwidth: float = 20.0, damping: float = 0.8):
+                 parameters: Mapping[str, float] | None = None, bandwidth: float = 30.0,
+                 damping: float = 0.8):
         super().__init__(control_frequency, voltage_limit, parameters)
         tau, k = self.time_constant, self.gain
         self.kp = bandwidth**2 * tau / k
@@ -102,19 +103,24 @@ class PositionPD(DiskController):
 
 
 class PositionPID(PositionPD):
-    """The PD law plus ki times the integral of the angle error, which removes the steady error that
-    Coulomb friction leaves (a PD stops short by friction / kp); the integral does not wind up.
+    """V = kp e + ki * integral of e - kd dtheta, e = theta_target - theta: the integral removes the steady
+    error that Coulomb friction leaves a PD (it stops short by friction / kp) and does not wind up. The
+    gains place the closed loop's poles, tau s^3 + (1 + K kd) s^2 + K kp s + K ki = 0, at natural
+    frequency `bandwidth` with damping ratio `damping` and a real pole at `integral_fraction` of it.
 
-    Args: as `PositionPD`, and `integral_gain` ki (V/(rad s), default 2 kp).
+    Args: as `PositionPD`, and `integral_fraction` (default 0.5).
     """
 
     name = "pid"
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
-                 parameters: Mapping[str, float] | None = None, bandwidth: float = 20.0, damping: float = 0.8,
-                 integral_gain: float | None = None):
+                 parameters: Mapping[str, float] | None = None, bandwidth: float = 30.0,
+                 damping: float = 0.8, integral_fraction: float = 0.5):
         super().__init__(control_frequency, voltage_limit, parameters, bandwidth, damping)
-        self.ki = 2.0 * self.kp if integral_gain is None else float(integral_gain)
+        tau, k, pole = self.time_constant, self.gain, integral_fraction * bandwidth
+        self.kd = max(0.0, (tau * (2.0 * damping * bandwidth + pole) - 1.0) / k)
+        self.kp = tau * (bandwidth**2 + 2.0 * damping * bandwidth * pole) / k
+        self.ki = tau * pole * bandwidth**2 / k
 
     def voltage_for(self, theta: float, dtheta: float, target: float) -> float:
         error = target - theta
@@ -136,7 +142,8 @@ class SpeedPI(DiskController):
     observation_size = 2
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
-                 parameters: Mapping[str, float] | None = None, bandwidth: float = 25.0, damping: float = 1.0):
+                 parameters: Mapping[str, float] | None = None, bandwidth: float = 25.0,
+                 damping: float = 1.0):
         super().__init__(control_frequency, voltage_limit, parameters)
         tau, k = self.time_constant, self.gain
         self.ki = bandwidth**2 * tau / k
@@ -153,8 +160,8 @@ class PositionLQR(DiskController):
     """Discrete LQR on [theta - theta_target, dtheta, integral of theta - theta_target] of the
     zero-order-hold discretisation of the disk's model, V = -K x.
 
-    Args: as `DiskController`, and the weights: `angle_tolerance` (rad, default 0.05),
-    `speed_tolerance` (rad/s, default 20), `integral_tolerance` (rad s, default 0.05): the state
+    Args: as `DiskController`, and the weights: `angle_tolerance` (rad, default 0.3),
+    `speed_tolerance` (rad/s, default 20), `integral_tolerance` (rad s, default 0.3): the state
     weights are their inverse squares, the voltage's 1 / voltage_limit^2 (Bryson's rule).
     """
 
@@ -163,8 +170,8 @@ class PositionLQR(DiskController):
     observation_size = 3
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT,
-                 parameters: Mapping[str, float] | None = None, angle_tolerance: float = 0.05,
-                 speed_tolerance: float = 20.0, integral_tolerance: float = 0.05):
+                 parameters: Mapping[str, float] | None = None, angle_tolerance: float = 0.3,
+                 speed_tolerance: float = 20.0, integral_tolerance: float = 0.3):
         super().__init__(control_frequency, voltage_limit, parameters)
         tau, k = self.time_constant, self.gain
         a = np.array([[0.0, 1.0, 0.0], [0.0, -1.0 / tau, 0.0], [1.0, 0.0, 0.0]])

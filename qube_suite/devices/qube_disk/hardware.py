@@ -77,7 +77,8 @@ class Physics(control.Physics):
 
     def __init__(self, control_frequency: float = 250.0, board: str = SIMULATED, device: str | None = None,
                  parameters: dict[str, float] | None = None, realtime: bool | None = None,
-                 max_voltage: float = 10.0, reset_timeout: float = DEFAULT_RESET_TIMEOUT, identifier: str = "0"):
+                 max_voltage: float = 10.0, reset_timeout: float = DEFAULT_RESET_TIMEOUT,
+                 identifier: str = "0"):
         if device is None:
             device = next((name for name, d in BOARDS.items() if d.board_type == board), "qube_servo2")
         if device not in BOARDS:
@@ -201,7 +202,8 @@ class Physics(control.Physics):
                     break
                 self._sample(0.0)
             else:
-                raise ResetError(f"reset failed: the disk did not come to rest within {self._reset_timeout:g} s "
+                raise ResetError(f"reset failed: the disk did not come to rest within "
+                                 f"{self._reset_timeout:g} s "
                                  f"(speed {self._speed:.2f} rad/s)")
         except BaseException:
             self._stop()

@@ -24,8 +24,9 @@ from qube_suite.devices.qube_disk import parameters as disk_parameters
 from qube_suite.hardware.plant import plant_parameters
 
 VANISHING_PENDULUM_MASS = 1e-9
-"""Mass (kg) left to the absent pendulum: its torque on the shaft is below 1e-11 N m, nine orders
-under the motor's friction; its own equations stay well scaled (every term goes with its mass)."""
+"""Mass (kg) left to the absent pendulum (the plant needs one): it still swings as the shaft turns,
+its motion being independent of its mass, but its torque on the shaft stays below 1e-11 N m, eight
+orders under the shaft's friction, and its encoder is not read."""
 
 STAND_IN_LENGTH = math.sqrt(6.0)
 """The shaft's load as the plant's arm: a rod of the disk's mass and length sqrt(6) rd has the

@@ -184,7 +184,8 @@ class Position(DiskTask):
         return physics.disk_angle() - self._schedule.value
 
     def dense_reward(self, physics):
-        return maximum(1.0 - abs(self.error(physics)) / math.pi - _voltage_cost(physics, self.voltage_limit), 0.0)
+        cost = _voltage_cost(physics, self.voltage_limit)
+        return maximum(1.0 - abs(self.error(physics)) / math.pi - cost, 0.0)
 
     def at_goal(self, physics):
         """Whether the disk is within 3 degrees of its target."""
@@ -259,8 +260,8 @@ class Speed(DiskTask):
         return physics.disk_velocity() - self._target_speed
 
     def dense_reward(self, physics):
-        return maximum(1.0 - abs(self.error(physics)) / SPEED_SCALE - _voltage_cost(physics, self.voltage_limit),
-                       0.0)
+        cost = _voltage_cost(physics, self.voltage_limit)
+        return maximum(1.0 - abs(self.error(physics)) / SPEED_SCALE - cost, 0.0)
 
     def at_goal(self, physics):
         """Whether the disk turns within 2 rad/s of its target speed."""
