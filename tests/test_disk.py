@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from qube_suite import devices, suite
-from qube_suite.devices.qube_disk import controllers, parameters, simulation, substitute, tasks
+from qube_suite.devices.qube_disk import controllers, parameters, simulation, substitute
 from qube_suite.evaluation import evaluate
 from qube_suite.hardware import _hil_sim
 from qube_suite.hardware.quanser import QuanserWrapper
@@ -28,8 +28,10 @@ def test_discovery_finds_the_disk_with_its_domains_tasks_and_ids():
     device = devices.devices()["qube_disk"]
     assert device.domain_names == ("qube_disk", "qube_disk_hardware")
     assert set(suite.TASKS_BY_DOMAIN["qube_disk_hardware"]) == set(TASKS)
-    assert ("qube_disk", "position") in suite.BENCHMARKING and ("qube_disk", "speed_sparse") in suite.SPARSE
-    for env_id in ("QubeSuite/DiskPosition-v0", "QubeSuite/DiskSpeedSparse-v0", "QubeSuite/DiskSpeedHardware-v0"):
+    assert ("qube_disk", "position") in suite.BENCHMARKING
+    assert ("qube_disk", "speed_sparse") in suite.SPARSE
+    for env_id in ("QubeSuite/DiskPosition-v0", "QubeSuite/DiskSpeedSparse-v0",
+                   "QubeSuite/DiskSpeedHardware-v0"):
         assert env_id in gymnasium.registry
     assert "target_speed" in suite.task_keywords("qube_disk", "speed")
     assert "target" in suite.task_keywords("qube_disk", "position")
@@ -176,8 +178,8 @@ def test_the_pi_controller_holds_the_speed_on_the_substitute():
     assert result.success_rate == 1.0, result.to_dict()
 
 
-DISK_NAMES = re.compile(r"qube_disk|inertia[- ]dis[ck]|\bDisk[A-Z]|\"Disk\"|disk_(angle|velocity|state|mass|radius)",
-                        re.IGNORECASE)
+DISK_NAMES = re.compile(r"qube_disk|inertia[- ]dis[ck]|\bDisk[A-Z]|\"Disk\"|"
+                        r"disk_(angle|velocity|state|mass|radius)", re.IGNORECASE)
 
 
 def test_nothing_outside_the_disks_folder_names_it():

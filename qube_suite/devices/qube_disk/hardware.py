@@ -229,6 +229,12 @@ class Physics(control.Physics):
         self._twin.set_led(self._led)
         return self._twin.drawable()
 
+    @property
+    def model(self):
+        """The digital twin's `MjModel` (what `drawable()` draws), for dm_control tools that read a
+        physics' model (element names, cameras)."""
+        return self.drawable().model
+
     def free(self) -> None:
         """Stop the motor and close the board (dm_control's `close()` calls it)."""
         self.close()

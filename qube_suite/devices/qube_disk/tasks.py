@@ -35,8 +35,9 @@ SPEED_SCALE = 50.0
 SPEED_TOLERANCE = 2.0
 """Goal set of the speed tasks: within 2 rad/s of the target speed."""
 
-DEFAULT_TARGET_SPEED = 40.0
-"""The speed tasks' default target (rad/s): 1.7 V at steady state, within the default 3 V."""
+TARGET_SPEEDS = (20.0, 60.0)
+"""Without a `target_speed`, each episode draws its target's magnitude uniformly from 20 to 60 rad/s
+(0.9 to 2.6 V at steady state, within the default 3 V) and its sign at random."""
 
 SETTLED_FRACTION = 0.8
 """A position episode succeeds when the disk was within the goal set for 80 % of its steps: it settles
@@ -222,38 +223,52 @@ class Speed(DiskTask):
     | target | 0 | target speed | rad/s | the `target_speed` |
 
     ## Reward
-    max(0, 1 - |dtheta - target_speed| / 50 - 0.1 (V / voltage_limit)^2) per step: at the
-    default target 40 rad/s, holding it (1.7 V) earns 0.97. Sparse: 1 within 2 rad/s of the
-    target, else 0.
+    max(0, 1 - |dtheta - target_speed| / 50 - 0.1 (V / voltage_limit)^2) per step: holding
+    40 rad/s (1.7 V) earns 0.97. Sparse: 1 within 2 rad/s of the target, else 0.
 
     ## Start
-    At rest at theta = 0.
+    At rest at theta = 0; the target speed drawn for the episode (see Arguments).
 
     ## Episode end
     Never terminates on a plausible disk (|dtheta| <= 300 rad/s); truncated at the time limit.
     Success (`qube_suite.evaluation`): within 2 rad/s of the target throughout the last 2 s.
 
     ## Arguments
-    `voltage_limit`, `random`, `target_speed` (rad/s, |target_speed| <= 200, default 40).
+    `voltage_limit`, `random`, `target_speed` (rad/s, |target_speed| <= 200): a fixed target; by
+    default each episode draws one, 20 to 60 rad/s in either direction.
 
     ## Version history
     v0: first release.
     """
 
-    def __init__(self, target_speed: float = DEFAULT_TARGET_SPEED, **kwargs):
+    def __init__(self, target_speed: float | None = None, **kwargs):
         super().__init__(**kwargs)
-        if isinstance(target_speed, bool) or not isinstance(target_speed, (int, float)) \
-                or not abs(target_speed) <= 200.0:
-            raise ValueError(f"target_speed must be a number of rad/s within +-200, got {target_speed!r}")
-        self._target_speed = float(target_speed)
+        number = isinstance(target_speed, (int, float)) and not isinstance(target_speed, bool)
+        if target_speed is not None and not (number and abs(target_speed) <= 200.0):
+            raise ValueError(f"target_speed must be None or a number of rad/s within +-200, "
+                             f"got {target_speed!r}")
+        self._fixed = None if target_speed is None else float(target_speed)
+        self._target_speed = 0.0 if self.worlds is None else np.zeros(self.worlds)
 
     @property
-    def target(self) -> float:
-        """The target speed (rad/s)."""
+    def target(self):
+        """The episode's target speed (rad/s; one per world in a batch)."""
         return self._target_speed
 
     def initial_state(self, random: np.random.RandomState) -> np.ndarray:
         return np.zeros(2)
+
+    def initialize_episode(self, physics, world: int | None = None) -> None:
+        super().initialize_episode(physics, world)
+        random = self.random if world is None else self.randoms[world]
+        if self._fixed is None:
+            target = random.uniform(*TARGET_SPEEDS) * random.choice((-1.0, 1.0))
+        else:
+            target = self._fixed
+        if world is None:
+            self._target_speed = target
+        else:
+            self._target_speed[world] = target
 
     def error(self, physics):
         """dtheta - target_speed (rad/s)."""
@@ -276,7 +291,7 @@ class Speed(DiskTask):
 
     def observation_values(self, physics) -> list:
         velocity = physics.disk_velocity()
-        return [velocity, velocity * 0.0 + self._target_speed]
+        return [velocity, self._target_speed]
 
 
 @SUITE.register("benchmarking")
