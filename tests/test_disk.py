@@ -189,3 +189,12 @@ def test_nothing_outside_the_disks_folder_names_it():
               and DISK_NAMES.search(path.read_text(encoding="utf-8"))]
     assert naming == []
     assert DISK_NAMES.search((FOLDER / "tasks.py").read_text())  # the pattern does find the disk's names
+
+
+def test_make_vec_steps_single_disks_without_a_batch_simulation():
+    envs = gymnasium.make_vec("QubeSuite/DiskSpeed-v0", num_envs=2)
+    observations, _ = envs.reset(seed=0)
+    assert observations.shape == (2, 2) and observations[0, 1] != observations[1, 1]  # own targets
+    observations, *_ = envs.step(np.full((2, 1), 1.0))
+    assert (observations[:, 0] > 0.0).all()
+    envs.close()

@@ -41,6 +41,8 @@ class Device:
             `qube_suite.policies.features.FEATURE_MAPS`).
         controllers: module of its controllers: `CONTROLLERS` (name -> class) and
             `for_environment(name, environment)`.
+        batch: module of its batch simulation behind `gymnasium.make_vec`'s native vector env, or
+            None: `make_vec` then steps single environments (Gymnasium's own `SyncVectorEnv`).
     """
 
     name: str
@@ -51,6 +53,7 @@ class Device:
     gymnasium_prefix: str = ""
     feature_map: str = "trig"
     controllers: str = "qube_suite.baselines"
+    batch: str | None = None
 
     @property
     def domain_names(self) -> tuple[str, str]:
