@@ -10,7 +10,7 @@ import re
 import pytest
 from conftest import OFFSCREEN_GL
 
-from qube_suite import baselines, parameters, randomization, suite
+from qube_suite import baselines, parameters, randomization
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 README = (ROOT / "README.md").read_text()
