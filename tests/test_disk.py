@@ -198,3 +198,24 @@ def test_make_vec_steps_single_disks_without_a_batch_simulation():
     observations, *_ = envs.step(np.full((2, 1), 1.0))
     assert (observations[:, 0] > 0.0).all()
     envs.close()
+
+
+POLICY = FOLDER / "policies" / "ppo_position.npz"
+
+
+def test_the_command_line_runs_and_scores_the_disk(capsys):
+    from qube_suite import cli
+
+    assert cli.main(["eval", "--domain", "qube_disk_hardware", "--device", "qube_servo3", "--task", "speed",
+                     "--controller", "pi", "--episodes", "1", "--quiet"]) == 0
+    assert "success 100 %" in capsys.readouterr().out
+    assert cli.main(["run", "--domain", "qube_disk", "--task", "position", "--policy", str(POLICY),
+                     "--episodes", "1", "--quiet"]) == 0
+    assert "2048 steps, time limit" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("domain", ["qube_disk", "qube_disk_hardware"])
+def test_the_learned_position_policy_follows_the_targets(domain):
+    """PPO (250 k steps in simulation) keeps the disk near its targets on both domains."""
+    result = evaluate(mlp.load(POLICY), domain=domain, task="position", episodes=2)
+    assert result.mean_return > 1800.0, result.to_dict()

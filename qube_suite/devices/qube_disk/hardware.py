@@ -116,8 +116,9 @@ class Physics(control.Physics):
         """dtheta/dt (rad/s), by Quanser's velocity filter (lags 20 ms)."""
         return self._speed
 
-    def disk_state(self) -> np.ndarray:
-        """[theta, dtheta] (rad, rad/s) as a new array."""
+    def qube_state(self) -> np.ndarray:
+        """The disk-loaded Qube's state [theta, dtheta] (rad, rad/s), as a new array: what episode traces
+        record (`conventions.STATE_NAMES`)."""
         return np.array([self._angle, self._speed])
 
     def voltage(self) -> float:
@@ -225,7 +226,7 @@ class Physics(control.Physics):
             from qube_suite.devices.qube_disk.simulation import make_physics
 
             self._twin = make_physics(self._frequency)
-        self._twin.reset_to(self.disk_state())
+        self._twin.reset_to(self.qube_state())
         self._twin.set_led(self._led)
         return self._twin.drawable()
 

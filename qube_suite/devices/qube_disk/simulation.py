@@ -34,7 +34,7 @@ class Physics(dm_mujoco.Physics):
     """MuJoCo physics of the disk-loaded Qube with accessors that read like it.
 
     The domain interface of the disk (`DiskPhysics` in `qube_suite.devices.qube_disk.tasks`):
-    `disk_angle`, `disk_velocity`, `disk_state`, `voltage`, `applied_voltage`, `set_voltage`,
+    `disk_angle`, `disk_velocity`, `qube_state`, `voltage`, `applied_voltage`, `set_voltage`,
     `set_led`, `led`, `reset_to`, `time`, `timestep`, `step`, `end_episode`, `drawable`, `close`.
     A step after which the disk turns implausibly fast (beyond `MAX_SPEED`, inf or NaN) is undone
     and `physics_error` says so until the next reset.
@@ -82,8 +82,9 @@ class Physics(dm_mujoco.Physics):
         """dtheta/dt (rad/s), exact."""
         return float(self._data_ptr.qvel[self._dof_at])
 
-    def disk_state(self) -> np.ndarray:
-        """[theta, dtheta] (rad, rad/s) as a new array."""
+    def qube_state(self) -> np.ndarray:
+        """The disk-loaded Qube's state [theta, dtheta] (rad, rad/s), as a new array: what episode traces
+        record (`conventions.STATE_NAMES`)."""
         return np.array([self.disk_angle(), self.disk_velocity()])
 
     def voltage(self) -> float:
@@ -128,7 +129,7 @@ class Physics(dm_mujoco.Physics):
 
     def step(self, nstep: int = 1) -> None:
         """Advance `nstep` physics timesteps with the voltage held; a diverged step is undone."""
-        before, time = self.disk_state(), self._data_ptr.time
+        before, time = self.qube_state(), self._data_ptr.time
         mujoco.mj_step(self._model_ptr, self._data_ptr, nstep)
         speed = self.disk_velocity()
         if not abs(speed) <= MAX_SPEED:  # also NaN
