@@ -46,7 +46,7 @@ def main(argv: list[str] | None = None) -> str:
             if not task.endswith("_sparse")]
     for spec in args.policy:
         task, path = spec.split("=", 1)
-        runs.append((f"PPO ({pathlib.Path(path).parent.name})", task, path))
+        runs.append((f"PPO (`{pathlib.Path(path).name}`)", task, path))
     lines = ["| baseline | task | " + " | ".join(f"{d} return | {d} success" for d in DOMAINS) + " |",
              "|---|---|" + "---|---|" * len(DOMAINS)]
     for label, task, spec in runs:

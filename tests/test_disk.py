@@ -218,4 +218,4 @@ def test_the_command_line_runs_and_scores_the_disk(capsys):
 def test_the_learned_position_policy_follows_the_targets(domain):
     """PPO (250 k steps in simulation) keeps the disk near its targets on both domains."""
     result = evaluate(mlp.load(POLICY), domain=domain, task="position", episodes=2)
-    assert result.mean_return > 1800.0, result.to_dict()
+    assert result.mean_return > 1700.0, result.to_dict()
