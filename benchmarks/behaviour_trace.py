@@ -88,9 +88,13 @@ def record(path: str) -> None:
         for domain in ("qube", "qube_hardware"):
             environment = suite.load(domain, task, task_kwargs={"random": index}, randomization=EVERY_EFFECT)
             traces[f"{domain}/{task}/every_effect"] = _dm_env_trace(environment, index)
-    for index, env_id in enumerate(sorted(GYMNASIUM_IDS) + sorted(HARDWARE_GYMNASIUM_IDS)):
+    def pendulum(ids):  # the pendulum's ids, in the order (and so with the seeds) they always had
+        return [env_id for env_id in sorted(ids)
+                if gymnasium.spec(env_id).kwargs["domain"] in ("qube", "qube_hardware")]
+
+    for index, env_id in enumerate(pendulum(GYMNASIUM_IDS) + pendulum(HARDWARE_GYMNASIUM_IDS)):
         traces[f"gymnasium/{env_id}"] = _gymnasium_trace(gymnasium.make(env_id), index)
-    for index, env_id in enumerate(sorted(GYMNASIUM_IDS)):
+    for index, env_id in enumerate(pendulum(GYMNASIUM_IDS)):
         env = gymnasium.make_vec(env_id, num_envs=3, randomization="sim2real")
         traces[f"make_vec/{env_id}"] = _gymnasium_trace(env, index, vector=True)
     np.savez_compressed(path, **traces)

@@ -152,11 +152,11 @@ def _add_hardware_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _hardware_domain_kwargs(args: argparse.Namespace) -> dict[str, str]:
-    """domain_kwargs from --device and --board (which need --domain qube_hardware)."""
+    """domain_kwargs from --device and --board (which need a hardware domain, e.g. qube_hardware)."""
     chosen = {name: getattr(args, name) for name in ("device", "board") if getattr(args, name) is not None}
-    if chosen and args.domain != "qube_hardware":
+    if chosen and not (args.domain in devices.domains() and devices.domain(args.domain).hardware):
         raise ValueError(f"--{' and --'.join(chosen)} {'needs' if len(chosen) == 1 else 'need'} "
-                         "--domain qube_hardware")
+                         "--domain qube_hardware or another device's hardware domain")
     return chosen
 
 
@@ -196,7 +196,7 @@ def _make_policy(args: argparse.Namespace, environment: Any) -> tuple[Any, str]:
     if args.policy is not None:
         policy, name = load_policy(args.policy), args.policy
     else:
-        policy, name = policy_for(args.controller, environment), args.controller
+        policy, name = policy_for(args.controller, environment, args.domain), args.controller
     _note_if_meant_for_other_tasks(name, policy, args.task)
     return policy, name
 

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from qube_suite import baselines, recording, suite
+from qube_suite import baselines, devices, recording, suite
 from qube_suite.policies import load_policy, names_a_policy, shipped
 from qube_suite.progress import Progress
 from qube_suite.tasks.base import success_steps
@@ -78,18 +78,19 @@ class EvaluationResult:
         }
 
 
-def policy_for(spec: str, environment) -> Callable[[Any], float]:
-    """The policy `spec` names, for a suite `environment`: a controller of
-    `baselines.CONTROLLERS` built by `baselines.for_environment`, a shipped learned policy
-    ("ppo:balance") or the path of a policy file (.npz). Raises ValueError naming the valid ones."""
-    if spec in baselines.CONTROLLERS:
-        return baselines.for_environment(spec, environment)
+def policy_for(spec: str, environment, domain: str = "qube") -> Callable[[Any], float]:
+    """The policy `spec` names, for a suite `environment` of `domain`: a controller of the domain's
+    device (the pendulum's `baselines.CONTROLLERS`) built by its `for_environment`, a shipped learned
+    policy ("ppo:balance") or the path of a policy file (.npz). Raises ValueError naming the valid ones."""
+    controllers = devices.domain(domain).device.controller_module()
+    if spec in controllers.CONTROLLERS:
+        return controllers.for_environment(spec, environment)
     if names_a_policy(spec):
         policy = load_policy(spec)
         policy.observation_layout = environment.task.observation_layout
         return policy
     raise ValueError(f"unknown controller or policy {spec!r}: valid controllers are "
-                     f"{', '.join(baselines.CONTROLLERS)}; shipped policies "
+                     f"{', '.join(controllers.CONTROLLERS)}; shipped policies "
                      f"{', '.join(shipped()) or 'none'}; or give the path of a .npz policy file")
 
 
@@ -148,7 +149,7 @@ def _evaluate(policy, environment, domain: str, task: str, episodes: int, seed: 
               progress: bool) -> EvaluationResult:
     name = policy if isinstance(policy, str) else getattr(policy, "name", type(policy).__name__)
     if isinstance(policy, str):
-        policy = policy_for(policy, environment)
+        policy = policy_for(policy, environment, domain)
     follows_target = environment.task.follows_target
     settled = success_steps(environment.control_frequency)
     returns, successes, step_times, step_cpu_times = [], [], [], []

@@ -37,6 +37,12 @@ class Device:
         hardware: module of the hardware domain, alike.
         tasks: module holding the device's tasks as `SUITE` (a `qube_suite.tasks.registry.TaskSuite`).
         gymnasium_prefix: its tasks' Gymnasium ids are `QubeSuite/<prefix><Task>[Hardware]-v0`.
+        feature_map: what its learned policies see of an observation (a name in
+            `qube_suite.policies.features.FEATURE_MAPS`).
+        controllers: module of its controllers: `CONTROLLERS` (name -> class) and
+            `for_environment(name, environment)`.
+        batch: module of its batch simulation behind `gymnasium.make_vec`'s native vector env, or
+            None: `make_vec` then steps single environments (Gymnasium's own `SyncVectorEnv`).
     """
 
     name: str
@@ -45,11 +51,18 @@ class Device:
     hardware: str
     tasks: str
     gymnasium_prefix: str = ""
+    feature_map: str = "trig"
+    controllers: str = "qube_suite.baselines"
+    batch: str | None = None
 
     @property
     def domain_names(self) -> tuple[str, str]:
         """The simulated domain's name and the hardware domain's."""
         return self.name, self.name + HARDWARE_SUFFIX
+
+    def controller_module(self) -> ModuleType:
+        """The module of its controllers (`CONTROLLERS`, `for_environment`), imported."""
+        return importlib.import_module(self.controllers)
 
     def task_suite(self):
         """The device's tasks: name -> factory, tagged (its tasks module's `SUITE`)."""

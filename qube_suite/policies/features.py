@@ -9,6 +9,8 @@ its map.
 - `trig`: [cos theta, sin theta, cos alpha, sin alpha, dtheta, dalpha], and for
   follow tasks also [theta - theta_target, theta_target]: angles enter through
   their cosine and sine, so alpha's wrap at +-pi is no jump.
+- `plain`: the observation as it is, for devices whose observations need no mapping (a device
+  names its map: `qube_suite.devices.Device.feature_map`).
 """
 
 from __future__ import annotations
@@ -30,7 +32,12 @@ def trig(observations: np.ndarray) -> np.ndarray:
     return np.stack(columns, axis=1)
 
 
-FEATURE_MAPS: dict[str, Callable[[np.ndarray], np.ndarray]] = {"trig": trig}
+def plain(observations: np.ndarray) -> np.ndarray:
+    """The observations themselves, shape (n, size), as a new float64 array."""
+    return np.array(observations, dtype=np.float64)
+
+
+FEATURE_MAPS: dict[str, Callable[[np.ndarray], np.ndarray]] = {"trig": trig, "plain": plain}
 """Feature map name -> function of a batch of standard observations."""
 
 

@@ -77,10 +77,12 @@ class MLPPolicy:
         self._scale = 1.0 / np.sqrt(self.observation_var + float(self.meta["epsilon"]))
         self._clip = float(self.meta["clip"])
         self._size = int(self.meta["observation_size"])
-        self.observation_layout = ObservationLayout(target=self._size == 5)
+        self.observation_layout = ObservationLayout(target=self._size == 5) \
+            if self.meta["feature_map"] == "trig" else None
         """How calls read observations: by default the layout the policy was trained on (its file's
         `observation_size`); set the task's (`QubeTask.observation_layout`) to run it on another,
-        e.g. the trig one."""
+        e.g. the trig one. None for another feature map (a device's `plain` policy), which reads its
+        observation's values in order."""
         self.history = int(self.meta.get("history", 0))
         self._memory: History | None = None
         self._last: tuple[np.ndarray, np.ndarray] | None = None
@@ -124,12 +126,25 @@ class MLPPolicy:
 
     def __call__(self, observation: Any) -> float:
         """Motor voltage (V) for one observation of the policy's task."""
-        state, target = self.observation_layout.split(observation)
-        row = np.append(state, target) if self._size == 5 else state
+        if self.meta["feature_map"] != "trig":
+            row = flat_values(observation, self._size)
+        else:
+            state, target = self.observation_layout.split(observation)
+            row = np.append(state, target) if self._size == 5 else state
         return float(self.actions(row[None, :])[0])
 
     def close(self) -> None:
         """Nothing to release."""
+
+
+def flat_values(observation: Any, size: int) -> np.ndarray:
+    """The values of an observation in order (a dm_env mapping's entries concatenated, or a flat
+    vector); ValueError unless there are `size`."""
+    values = observation.values() if isinstance(observation, Mapping) else [observation]
+    row = np.concatenate([np.ravel(np.asarray(value, dtype=np.float64)) for value in values])
+    if row.size != size:
+        raise ValueError(f"the policy takes observations of {size} values, got {row.size}")
+    return row
 
 
 def save(policy: MLPPolicy, path: str | pathlib.Path) -> pathlib.Path:
@@ -193,8 +208,11 @@ def _check(weights: list[np.ndarray], biases: list[np.ndarray], mean: np.ndarray
         raise ValueError(f"unknown feature map {meta['feature_map']!r}; known: {', '.join(FEATURE_MAPS)}")
     if meta["activation"] not in ACTIVATIONS:
         raise ValueError(f"unknown activation {meta['activation']!r}; known: {', '.join(ACTIVATIONS)}")
-    if meta["observation_size"] not in (4, 5):
-        raise ValueError(f"observation_size must be 4 or 5, got {meta['observation_size']!r}")
+    size = meta["observation_size"]
+    if meta["feature_map"] == "trig" and size not in (4, 5):
+        raise ValueError(f"observation_size must be 4 or 5, got {size!r}")
+    if not (isinstance(size, int) and not isinstance(size, bool) and size > 0):
+        raise ValueError(f"observation_size must be a positive integer, got {size!r}")
     if not weights or len(weights) != len(biases):
         raise ValueError("no layers, or weights and biases that do not pair up")
     features = FEATURE_MAPS[meta["feature_map"]](np.zeros((1, meta["observation_size"]))).shape[1]

@@ -91,20 +91,25 @@ class ProbeQubes:
         self._states, self._times = np.array(states, dtype=np.float64), times
 
 
-def check_batch_safety(factory: Callable, name: str | None = None, seed: int = 0) -> None:
+def check_batch_safety(factory: Callable, name: str | None = None, seed: int = 0,
+                       probe: type[ProbeQubes] | None = None, probe_states: np.ndarray | None = None) -> None:
     """Raise `BatchSafetyError` unless the task `factory(**kwargs)` makes is batch-safe.
 
     `factory` is a task class or a function taking the task keywords (`random`, `worlds`);
     `name`: the task's registered name, for the message. The batch task
     (`worlds=2`, seeded `seed`) is compared, method by method in an episode's order, with two
-    single tasks seeded `seed` and `seed + 1`, each in the state of its world.
+    single tasks seeded `seed` and `seed + 1`, each in the state of its world. `probe` and
+    `probe_states`: the stand-in for another device's domain (a `ProbeQubes` subclass with that
+    device's accessors) and the states of its two worlds; default: the pendulum's.
     """
-    worlds = len(PROBE_STATES)
+    probe = ProbeQubes if probe is None else probe
+    probe_states = PROBE_STATES if probe_states is None else probe_states
+    worlds = len(probe_states)
     batch_task = factory(random=seed, worlds=worlds)
     singles = [factory(random=seed + world) for world in range(worlds)]
     owner = type(batch_task).__name__ if name is None else f"task {name!r}: {type(batch_task).__name__}"
-    batch = ProbeQubes(np.zeros((worlds, 4)), np.zeros(worlds), worlds)
-    qubes = [ProbeQubes(np.zeros(4), 0.0, None) for _ in range(worlds)]
+    batch = probe(np.zeros(probe_states.shape), np.zeros(worlds), worlds)
+    qubes = [probe(np.zeros(probe_states.shape[1]), 0.0, None) for _ in range(worlds)]
 
     def compare(method: str, call: Callable) -> None:
         expected = np.stack([_per_world(call(task, qube)) for task, qube in zip(singles, qubes, strict=True)])
@@ -140,9 +145,9 @@ def check_batch_safety(factory: Callable, name: str | None = None, seed: int = 0
         return task.observation_values(physics)
 
     compare("initialize_episode", initialize_episode)
-    batch.move_to(PROBE_STATES, PROBE_TIMES.copy())
+    batch.move_to(probe_states, PROBE_TIMES.copy())
     for world, qube in enumerate(qubes):
-        qube.move_to(PROBE_STATES[world], float(PROBE_TIMES[world]))
+        qube.move_to(probe_states[world], float(PROBE_TIMES[world]))
     compare("observation_values", lambda task, physics: task.observation_values(physics))
     compare("before_step", before_step)
     compare("after_step", after_step)

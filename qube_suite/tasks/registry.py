@@ -25,9 +25,12 @@ class TaskSuite(containers.TaggedTasks):
     registered before and after (the Gymnasium registration gives each its ids).
     """
 
-    def __init__(self):
+    def __init__(self, probe: type | None = None, probe_states=None):
+        """`probe`, `probe_states`: how `check_batch_safety` stands in for the device's domain
+        (default: the pendulum's)."""
         super().__init__()
         self._listeners: list[Callable[[str], None]] = []
+        self._probe = {"probe": probe, "probe_states": probe_states}
 
     def register(self, *tags: str) -> Callable[[Callable], Callable]:
         """Decorator registering a task factory under its function's name, with `tags`.
@@ -40,7 +43,7 @@ class TaskSuite(containers.TaggedTasks):
         `gymnasium.make("QubeSuite/<Name>-v0")`, `QubeVectorEnv(name, N)`.
         """
         def add(factory: Callable) -> Callable:
-            check_batch_safety(factory, name=factory.__name__)
+            check_batch_safety(factory, name=factory.__name__, **self._probe)
             task_keywords(factory)  # raises if they cannot be read
             self.add(*tags)(factory)
             for listener in self._listeners:

@@ -162,6 +162,7 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import VecNormalize
 
+    from qube_suite import devices
     from qube_suite.policies import save
     from qube_suite.training import export, warm_start
     from qube_suite.training.callbacks import FrozenUntil, OnNewBest, ProgressBar
@@ -182,7 +183,9 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     if exploring_starts is None:
         exploring_starts = EXPLORING_STARTS.get(task, 0.0)
     starts = exploring_starts if domain == "qube" else 0.0
-    venv = make_vec_env(task, num_envs, seed, exploring_starts=starts, history=history, **env_kwargs)
+    feature_map = devices.domain(domain).device.feature_map
+    venv = make_vec_env(task, num_envs, seed, feature_map=feature_map, exploring_starts=starts,
+                        history=history, **env_kwargs)
     checkpoint = warm_start.latest_checkpoint(out / "checkpoints", algo) if resume else None
     if checkpoint is not None:
         venv = warm_start.load_checkpoint_normalization(checkpoint, venv)
@@ -191,7 +194,8 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     elif isinstance(init, pathlib.Path):
         venv = warm_start.load_normalization(init, venv, settings["gamma"], history)
     eval_worlds = 1 if domain != "qube" else min(eval_episodes, 8)
-    eval_venv = VecNormalize(make_vec_env(task, eval_worlds, seed + 100_000, history=history, **env_kwargs),
+    eval_venv = VecNormalize(make_vec_env(task, eval_worlds, seed + 100_000, feature_map=feature_map,
+                                          history=history, **env_kwargs),
                              training=False, norm_reward=False)
     observation_size = venv.unwrapped.observation_space.shape[0]
     policy_kwargs = dict(settings.pop("policy_kwargs"))
@@ -226,7 +230,7 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     def export_to(path: pathlib.Path) -> None:
         training = {**record, "steps": int(model.num_timesteps), "wall_time_s": time.perf_counter() - start}
         save(export.from_sb3(model, venv.obs_rms.mean, venv.obs_rms.var, epsilon=venv.epsilon,
-                             clip=venv.clip_obs, feature_map="trig", observation_size=observation_size,
+                             clip=venv.clip_obs, feature_map=feature_map, observation_size=observation_size,
                              voltage_limit=float(venv.action_space.high[0]), task=task, training=training,
                              history=history),
              path)

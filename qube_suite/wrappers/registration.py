@@ -106,8 +106,9 @@ def _register_task(device: devices.Device, task: str) -> None:
     simulation, hardware = device.domain_names
     env_id = gymnasium_id(task, simulation)
     if env_id not in gymnasium.registry:
-        gymnasium.register(env_id, entry_point=make_env, vector_entry_point=make_vector_env,
-                           kwargs={"task": task, "domain": simulation}, **CHECKS_BUILT_IN)
+        vector = {} if device.batch is None else {"vector_entry_point": make_vector_env}
+        gymnasium.register(env_id, entry_point=make_env, kwargs={"task": task, "domain": simulation},
+                           **vector, **CHECKS_BUILT_IN)
     env_id = gymnasium_id(task, hardware)
     if env_id not in gymnasium.registry:
         gymnasium.register(env_id, entry_point=make_env, nondeterministic=True,

@@ -8,5 +8,6 @@ DEVICE = Device(
     simulation="qube_suite.domains.qube",
     hardware="qube_suite.domains.qube_hardware",
     tasks="qube_suite.tasks",
+    batch="qube_suite.domains.qube_batch",
 )
 """The pendulum: its Gymnasium ids have no prefix (`QubeSuite/Swingup-v0`)."""
