@@ -101,8 +101,8 @@ def test_invalid_voltages_write_zero_then_raise(bad):
         assert qube.board.applied_voltage == 0.0
 
 
-@pytest.mark.parametrize("bad", [(0.0, 2.0, 0.0), (0.0, -0.1, 0.0), (math.nan, 0.5, 0.5), (0.0, 0.5, math.inf),
-                                 (0.0, 0.5), (0.0, 0.5, 0.5, 0.5), [0.0, 2.0, 0.0]])
+@pytest.mark.parametrize("bad", [(0.0, 2.0, 0.0), (0.0, -0.1, 0.0), (math.nan, 0.5, 0.5),
+                                 (0.0, 0.5, math.inf), (0.0, 0.5), (0.0, 0.5, 0.5, 0.5), [0.0, 2.0, 0.0]])
 def test_invalid_led_writes_zero_then_raises(bad):
     with QubeServo2() as qube:
         qube.action(2.0, led=(0.0, 1.0, 0.0))

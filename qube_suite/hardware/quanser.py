@@ -665,8 +665,10 @@ class QuanserWrapper:
 
     def _checked_voltages(self, voltages) -> np.ndarray:
         n = len(self._volts)
+        if type(voltages) is float and n == 1:
+            return self._clipped([voltages], voltages)  # the common cases, without building an array
         if type(voltages) is list and len(voltages) == n and all(type(v) is float for v in voltages):
-            return self._clipped(voltages, voltages)  # the common case, without building an array
+            return self._clipped(voltages, voltages)
         try:
             values = np.asarray(voltages)
         except (TypeError, ValueError):
