@@ -5,6 +5,9 @@ reported as a multiple of real time at the control frequency (goal: >= 100x at
 250 Hz; all safety checks run, the arm limit is off because the open-loop sine
 turns the arm far), next to the bare board's `task_read` and `write_analog` (the
 plant's integration, at >= 10 kHz, with the least Python around it).
+Through the environment: `env.step` of `suite.load("qube_hardware", "swingup")` (250 Hz)
+with a constant 0.1 V, the step that calibration, training and the held-out studies
+run, episode resets excluded.
 Real-time mode: the period between successive `action` returns at 250 Hz for 5 s,
 as median, 99th percentile and maximum, with the samples the board counted as
 missed.
@@ -19,6 +22,7 @@ import time
 
 import numpy as np
 
+from qube_suite import suite
 from qube_suite.hardware import QubeServo2, _hil_sim
 
 FAST_SECONDS = 60.0      # simulated time per fast-mode measurement
@@ -55,6 +59,23 @@ def fast_board(frequency: float) -> float:
     return FAST_SECONDS / elapsed
 
 
+def fast_env_step(steps: int = 5000) -> float:
+    """Seconds per dm_env step of qube_hardware swingup, resets excluded (best of 5 runs)."""
+    env = suite.load("qube_hardware", "swingup")
+    action = np.array([0.1])
+    best = math.inf
+    try:
+        for _ in range(6):                                # the first run warms up
+            env.reset()
+            taken, start = 0, time.perf_counter()
+            while taken < steps // 5 and not env.step(action).last():
+                taken += 1
+            best = min(best, (time.perf_counter() - start) / max(taken, 1))
+    finally:
+        env.close()
+    return best
+
+
 def realtime_periods(frequency: float) -> tuple[np.ndarray, int]:
     """Periods (s) between action returns in real-time mode, and the missed samples."""
     steps = int(REALTIME_SECONDS * frequency)
@@ -73,6 +94,9 @@ def main() -> None:
     for frequency in (250.0, 500.0, 1000.0):
         wrapped, bare = fast_action(frequency), fast_board(frequency)
         print(f"{frequency:15.0f} {wrapped:17.0f}x {bare:10.0f}x {1e6 / (wrapped * frequency):10.1f}")
+    step = fast_env_step()
+    print(f"\nThrough the environment (qube_hardware swingup, 250 Hz): {1e6 * step:.1f} us per step, "
+          f"{1 / (step * 250.0):.0f}x real time")
     print()
     periods, missed = realtime_periods(250.0)
     ms = 1e3 * periods

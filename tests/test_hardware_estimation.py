@@ -73,3 +73,15 @@ def test_filter_checks_its_arguments():
         VelocityFilter(0.0)
     with pytest.raises(ValueError):
         VelocityFilter(PERIOD)([1.0, 2.0, 3.0])
+
+
+def test_state_estimator_gives_the_velocity_filters_numbers_bit_for_bit():
+    counts = np.cumsum(np.random.default_rng(3).integers(-40, 41, size=(400, 2)), axis=0).astype(np.int32)
+    estimator, reference = StateEstimator(FREQUENCY), VelocityFilter(1.0 / FREQUENCY)
+    for k, sample in enumerate(counts):
+        if k == 250:                                                    # a reset starts both afresh
+            estimator.reset()
+            reference.reset()
+        angles = (conventions.arm_angle(int(sample[0])), conventions.pendulum_angle_unwrapped(int(sample[1])))
+        expected = [wrap_angle(angles[0]), wrap_angle(angles[1]), *reference(angles)]
+        assert estimator(sample).tolist() == expected

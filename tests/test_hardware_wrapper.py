@@ -90,7 +90,8 @@ def test_voltages_are_clipped_to_max_voltage():
         assert qube.board.applied_voltage == -4.0
 
 
-@pytest.mark.parametrize("bad", [math.nan, math.inf, [1.0, 2.0], "one volt", [[1.0]], None])
+@pytest.mark.parametrize("bad", [math.nan, math.inf, [1.0, 2.0], "one volt", [[1.0]], None,
+                                 [math.nan], [-math.inf], [True], (math.nan,)])
 def test_invalid_voltages_write_zero_then_raise(bad):
     with QubeServo2() as qube:
         qube.action(2.0)
@@ -100,12 +101,14 @@ def test_invalid_voltages_write_zero_then_raise(bad):
         assert qube.board.applied_voltage == 0.0
 
 
-def test_invalid_led_writes_zero_then_raises():
+@pytest.mark.parametrize("bad", [(0.0, 2.0, 0.0), (0.0, -0.1, 0.0), (math.nan, 0.5, 0.5),
+                                 (0.0, 0.5, math.inf), (0.0, 0.5), (0.0, 0.5, 0.5, 0.5), [0.0, 2.0, 0.0]])
+def test_invalid_led_writes_zero_then_raises(bad):
     with QubeServo2() as qube:
         qube.action(2.0, led=(0.0, 1.0, 0.0))
         assert qube.board.led == (0.0, 1.0, 0.0)
         with pytest.raises(ValueError, match="led"):
-            qube.action(2.0, led=(0.0, 2.0, 0.0))
+            qube.action(2.0, led=bad)
         assert qube.board.applied_voltage == 0.0
 
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from qube_suite.angles import wrap_angle
 from qube_suite.hardware import conventions
-from qube_suite.velocity_filter import VELOCITY_FILTER_CUTOFF, VelocityFilter
+from qube_suite.velocity_filter import VELOCITY_FILTER_CUTOFF, VelocityFilter, filtered_velocity
 
 __all__ = ["VELOCITY_FILTER_CUTOFF", "StateEstimator", "VelocityFilter"]
 
@@ -25,15 +25,25 @@ class StateEstimator:
     def __init__(self, frequency: float, cutoff: float = VELOCITY_FILTER_CUTOFF):
         if not frequency > 0:
             raise ValueError(f"frequency must be positive, got {frequency}")
-        self.filter = VelocityFilter(1.0 / frequency, cutoff, channels=2)
+        velocity_filter = VelocityFilter(1.0 / frequency, cutoff, channels=2)
+        self._pole, self._gain = float(velocity_filter.pole), float(velocity_filter.gain)
+        self._last: tuple[float, float, float, float] | None = None  # theta, alpha (unwrapped), velocities
 
     def reset(self) -> None:
         """Start over: the next sample's velocities are zero."""
-        self.filter.reset()
+        self._last = None
 
     def __call__(self, encoder_counts: Sequence[int]) -> np.ndarray:
         """The state (rad, rad/s; angles wrapped to (-pi, pi]) from [arm counts, pendulum counts]."""
-        theta = conventions.arm_angle(encoder_counts[0])
-        alpha = conventions.pendulum_angle_unwrapped(encoder_counts[1])
-        dtheta, dalpha = self.filter((theta, alpha))
+        arm, pendulum = (encoder_counts.tolist() if isinstance(encoder_counts, np.ndarray)
+                         else encoder_counts)[:2]
+        theta = conventions.arm_angle(arm)
+        alpha = conventions.pendulum_angle_unwrapped(pendulum)
+        if self._last is None:
+            dtheta = dalpha = 0.0
+        else:  # the filter's step in floats, which gives the same numbers as on its arrays
+            last_theta, last_alpha, last_dtheta, last_dalpha = self._last
+            dtheta = filtered_velocity(last_dtheta, theta, last_theta, self._pole, self._gain)
+            dalpha = filtered_velocity(last_dalpha, alpha, last_alpha, self._pole, self._gain)
+        self._last = (theta, alpha, dtheta, dalpha)
         return np.array([wrap_angle(theta), wrap_angle(alpha), dtheta, dalpha])

@@ -393,6 +393,7 @@ class QuanserWrapper:
         self._others = np.zeros(len(d.other_inputs))
         self._zero_volts = np.zeros(len(d.analog_outputs))
         self._volts = np.zeros(len(d.analog_outputs))
+        self._rgb = np.zeros(len(d.led_outputs))
         self._fault_at = [d.digital_inputs.index(c) for c in d.amplifier_fault_inputs]
         self._warning_at = [d.digital_inputs.index(c) for c in d.stall_warning_inputs]
         self._stall_at = [d.digital_inputs.index(c) for c in d.stall_error_inputs]
@@ -666,6 +667,10 @@ class QuanserWrapper:
 
     def _checked_voltages(self, voltages) -> np.ndarray:
         n = len(self._volts)
+        if type(voltages) is float and n == 1:
+            return self._clipped([voltages], voltages)  # the common cases, without building an array
+        if type(voltages) is list and len(voltages) == n and all(type(v) is float for v in voltages):
+            return self._clipped(voltages, voltages)
         try:
             values = np.asarray(voltages)
         except (TypeError, ValueError):
@@ -676,14 +681,23 @@ class QuanserWrapper:
             values = values.reshape(1)
         if values.shape != (n,):
             self._refuse(f"voltages must have shape ({n},), got {values.shape}")
+        return self._clipped(values.astype(np.float64).tolist(), values)
+
+    def _clipped(self, values: list[float], given) -> np.ndarray:
+        """`values` (V, one per analog output) clipped to +-max_voltage into the output buffer;
+        refused (0 V, ValueError naming `given`) unless all are finite."""
         limit = self.max_voltage
-        for j, value in enumerate(values.astype(np.float64).tolist()):
+        for j, value in enumerate(values):
             if not math.isfinite(value):
-                self._refuse(f"voltages must be finite, got {values}")
+                self._refuse(f"voltages must be finite, got {given}")
             self._volts[j] = -limit if value < -limit else limit if value > limit else value
         return self._volts
 
     def _checked_led(self, led) -> np.ndarray:
+        if (type(led) is tuple and len(led) == len(self._rgb)
+                and all(type(x) is float and 0.0 <= x <= 1.0 for x in led)):  # NaN fails the comparison
+            self._rgb[:] = led  # the common case, without building and scanning arrays
+            return self._rgb
         try:
             rgb = np.asarray(led, dtype=np.float64)
         except (TypeError, ValueError):
