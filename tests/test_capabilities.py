@@ -23,7 +23,7 @@ def test_each_domain_has_the_capabilities_of_its_kind():
     simulation.close()
     board = qube_hardware.make_physics()
     assert _capabilities(board) == {"SensorEffects", "ActuatorEffects", "HasBoard", "NeedsResetControllers",
-                                    "HasDesignParameters"}
+                                    "HasDesignParameters", "Closable"}
     board.close()
     batch = QubeBatch(2)
     assert _capabilities(batch) == {"Randomizable", "SensorEffects", "ActuatorEffects", "StepDurationEffects",
