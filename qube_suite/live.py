@@ -27,6 +27,7 @@ import threading
 import time
 from collections.abc import Iterator
 from typing import Any
+from urllib.parse import quote
 
 import numpy as np
 
@@ -59,6 +60,8 @@ POLL = 0.05
 
 SINKS = ("viewer", "web")
 """Where the scopes go besides a .rrd file: Rerun's native viewer, or its web viewer served locally."""
+WEB_PORT, GRPC_PORT = 9090, 9876
+"""Ports of the web viewer's page and of the stream it reads (Rerun's defaults)."""
 
 
 def follow_lines(path: str | os.PathLike, follow: bool, done: threading.Event | None = None
@@ -232,10 +235,10 @@ def watch(path: str | os.PathLike, follow: bool = False, done: threading.Event |
         rr.spawn(connect=False)
         sinks.append(rr.GrpcSink())
     elif sink == "web":
-        url = rr.serve_grpc()
-        rr.serve_web_viewer(open_browser=False, connect_to=url)
-        print(f"scopes: open http://localhost:9090/?url={url}", flush=True)
-        sinks.append(rr.GrpcSink(url))
+        sinks.append(rr.GrpcServerSink(port=GRPC_PORT))  # a sink: set_sinks drops serve_grpc's server
+        url = f"rerun+http://localhost:{GRPC_PORT}/proxy"
+        rr.serve_web_viewer(web_port=WEB_PORT, open_browser=False, connect_to=url)
+        print(f"scopes: open http://localhost:{WEB_PORT}/?url={quote(url, safe=':/')}", flush=True)
     rr.set_sinks(*sinks, default_blueprint=layout)
     drawer = Twin() if twin else None
     scope = Scope(rr, drawer, live=follow)
