@@ -126,3 +126,25 @@ class MeasuredState:
     def voltage(self) -> float:
         """Motor voltage (V) commanded by the last `set_voltage`."""
         return self._voltage
+
+
+class BoardClockAndLed:
+    """What every board-backed physics has alike: the LED colour to show from the next sample on,
+    and time counted in board samples. Expects `_led`, `_samples`, `_episode_start` and
+    `_frequency` (Hz) set by the physics."""
+
+    def set_led(self, rgb: Sequence[float]) -> None:
+        """Show (r, g, b) on the LED from the next sample on."""
+        self._led = (float(rgb[0]), float(rgb[1]), float(rgb[2]))
+
+    def led(self) -> tuple[float, float, float]:
+        """The LED colour being shown."""
+        return self._led
+
+    def time(self) -> float:
+        """Board time since the episode started (s)."""
+        return (self._samples - self._episode_start) / self._frequency
+
+    def timestep(self) -> float:
+        """One sample (s)."""
+        return 1.0 / self._frequency

@@ -56,7 +56,7 @@ from dm_control.rl import control
 from qube_suite import parameters as params
 from qube_suite.angles import wrap_angle
 from qube_suite.arguments import keywords_of
-from qube_suite.domains.interface import MeasuredState
+from qube_suite.domains.interface import BoardClockAndLed, MeasuredState
 from qube_suite.hardware import conventions
 from qube_suite.hardware.errors import EncoderGlitchError, HardwareError
 from qube_suite.hardware.estimation import StateEstimator
@@ -200,7 +200,7 @@ class EncoderCheckError(HardwareError):
     zero is lost (missed counts, or the board was opened with the pendulum swinging)."""
 
 
-class Physics(MeasuredState, control.Physics):
+class Physics(BoardClockAndLed, MeasuredState, control.Physics):
     """A Qube on a Quanser board, through the domain interface (`domains.interface.QubePhysics`).
 
     Args:
@@ -345,22 +345,6 @@ class Physics(MeasuredState, control.Physics):
     def motor_current(self) -> float:
         """Motor current (A) measured by the board at the last sample."""
         return conventions.motor_current(float(self.currents[0]))
-
-    def set_led(self, rgb: Sequence[float]) -> None:
-        """Show (r, g, b) on the Qube's LED from the next sample on."""
-        self._led = (float(rgb[0]), float(rgb[1]), float(rgb[2]))
-
-    def led(self) -> tuple[float, float, float]:
-        """The LED colour being shown."""
-        return self._led
-
-    def time(self) -> float:
-        """Board time since the episode started (s)."""
-        return (self._samples - self._episode_start) / self._frequency
-
-    def timestep(self) -> float:
-        """One sample (s)."""
-        return 1.0 / self._frequency
 
     def step(self, nstep: int = 1) -> None:
         """Wait for the next `nstep` samples, writing the commanded voltage at each."""

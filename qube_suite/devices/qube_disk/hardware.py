@@ -25,6 +25,7 @@ from dm_control.rl import control
 from qube_suite.arguments import is_number, keywords_of
 from qube_suite.devices.qube_disk import conventions
 from qube_suite.devices.qube_disk.substitute import plant_overrides
+from qube_suite.domains.interface import BoardClockAndLed
 from qube_suite.domains.qube import check_control_frequency
 from qube_suite.hardware import conventions as board_conventions
 from qube_suite.hardware.errors import HardwareError
@@ -54,7 +55,7 @@ class ResetError(HardwareError):
     """The disk did not come to rest within the reset timeout; the motor is stopped."""
 
 
-class Physics(control.Physics):
+class Physics(BoardClockAndLed, control.Physics):
     """A disk-loaded Qube on a board, through the disk's domain interface (`tasks.DiskPhysics`).
 
     Args:
@@ -142,22 +143,6 @@ class Physics(control.Physics):
         """The last sample in board units: motor current (A), encoder counts, tachometer (counts/s)."""
         return {"current": float(self.currents[0]), "encoder_disk": int(self.encoders[0]),
                 "tachometer": float(self.others[0]), "missed_samples": self.qube.missed_samples}
-
-    def set_led(self, rgb: Sequence[float]) -> None:
-        """Show (r, g, b) on the LED from the next sample on."""
-        self._led = (float(rgb[0]), float(rgb[1]), float(rgb[2]))
-
-    def led(self) -> tuple[float, float, float]:
-        """The LED colour being shown."""
-        return self._led
-
-    def time(self) -> float:
-        """Board time since the episode started (s)."""
-        return (self._samples - self._episode_start) / self._frequency
-
-    def timestep(self) -> float:
-        """One sample (s)."""
-        return 1.0 / self._frequency
 
     def step(self, nstep: int = 1) -> None:
         """Wait for the next `nstep` samples, writing the commanded voltage at each."""
