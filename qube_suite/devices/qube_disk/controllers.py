@@ -78,6 +78,12 @@ class DiskController:
     def close(self) -> None:
         """Nothing to release."""
 
+    def pole_placement(self, bandwidth: float, damping: float) -> tuple[float, float]:
+        """Gains (g0, g1) of V = g0 x + g1 dx/dt on the motor's first-order speed response (gain K,
+        time constant tau) that put the closed loop's two poles at natural frequency `bandwidth`
+        (rad/s) with damping ratio `damping`: g0 = wn^2 tau / K, g1 = max(0, (2 zeta wn tau - 1) / K)."""
+        tau, k = self.time_constant, self.gain
+        return bandwidth**2 * tau / k, max(0.0, (2.0 * damping * bandwidth * tau - 1.0) / k)
 
 class PositionPD(DiskController):
     """V = kp (theta_target - theta) - kd dtheta, placing the closed loop's poles at natural frequency
@@ -94,9 +100,7 @@ class PositionPD(DiskController):
                  parameters: Mapping[str, float] | None = None, bandwidth: float = 30.0,
                  damping: float = 0.8):
         super().__init__(control_frequency, voltage_limit, parameters)
-        tau, k = self.time_constant, self.gain
-        self.kp = bandwidth**2 * tau / k
-        self.kd = max(0.0, (2.0 * damping * bandwidth * tau - 1.0) / k)
+        self.kp, self.kd = self.pole_placement(bandwidth, damping)
 
     def voltage_for(self, theta: float, dtheta: float, target: float) -> float:
         return self.kp * (target - theta) - self.kd * dtheta
@@ -145,9 +149,7 @@ class SpeedPI(DiskController):
                  parameters: Mapping[str, float] | None = None, bandwidth: float = 25.0,
                  damping: float = 1.0):
         super().__init__(control_frequency, voltage_limit, parameters)
-        tau, k = self.time_constant, self.gain
-        self.ki = bandwidth**2 * tau / k
-        self.kp = max(0.0, (2.0 * damping * bandwidth * tau - 1.0) / k)
+        self.ki, self.kp = self.pole_placement(bandwidth, damping)
 
     def voltage_for(self, dtheta: float, target: float) -> float:
         error = target - dtheta
