@@ -513,13 +513,20 @@ SINGLE_RUN_OPTIONS = ("algo", "steps", "seed", "randomization", "domain", "num_e
 """`train` options that make one training run instead of the task's recipe."""
 
 
+JAX_RUN_OPTIONS = ("steps", "seed", "randomization")
+"""`train` options of one run that the jax backend takes."""
+
+
 def _train(args: argparse.Namespace) -> int:
     from qube_suite.training import recipes, train
 
+    backend = args.backend or "sb3"
     if args.list_recipes:
-        print(recipes.listing())
+        print(recipes.listing(backend))
         return 0
     single = [name for name in SINGLE_RUN_OPTIONS if getattr(args, name) is not None]
+    if backend == "jax":
+        return _train_jax(args, single)
     recipe = args.recipe or (args.task if args.task in recipes.RECIPES and not single else None)
     if args.recipe and single:
         raise ValueError(f"--recipe runs the recipe's own stages; drop --{single[0].replace('_', '-')}")
@@ -543,21 +550,51 @@ def _train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _train_jax(args: argparse.Namespace, single: list[str]) -> int:
+    """`train --backend jax`: the task's jax recipe, or one run with --steps/--seed/--randomization."""
+    from qube_suite.training import recipes
+
+    refused = [name for name in single if name not in JAX_RUN_OPTIONS]
+    if refused:
+        raise ValueError(f"--backend jax takes --{', --'.join(o.replace('_', '-') for o in JAX_RUN_OPTIONS)}"
+                         f" of one run, not --{refused[0].replace('_', '-')}")
+    name = args.recipe or args.task
+    if name is None:
+        raise ValueError("give --task (and options of one run) or --recipe")
+    if not single:
+        policy = recipes.run(name, out=args.out, progress=not args.quiet, backend="jax")
+        print(f"recipe {name} (jax) done; policy {policy}")
+        return 0
+    from qube_suite.mjx import training as jax_training
+
+    result = jax_training.train(args.task, steps=args.steps or 60_000_000, seed=args.seed or 0,
+                                randomization=args.randomization or "none",
+                                out=args.out or f"runs/jax_{args.task}_{args.seed or 0}",
+                                progress=None if args.quiet else print)
+    print(f"trained {args.steps or 60_000_000} steps in {result.wall_time:.0f} s; last evaluation return "
+          f"{result.evaluations[-1][1]:.1f}; policy {result.policy_path}")
+    return 0
+
+
 def _add_train(commands) -> None:
     training = commands.add_parser(
-        "train", help="train a policy with stable-baselines3 (needs the 'rl' extra)",
+        "train", help="train a policy: stable-baselines3 (the 'rl' extra) or Brax on MJX ('jax')",
         description="Train PPO or SAC on a task; write checkpoints, evaluations, CSV and TensorBoard logs "
                     "and the policy as a numpy file that 'eval --controller FILE.npz' runs.",
         epilog="examples:\n  qube-suite train --task swingup                 (its recipe: every stage)\n"
                "  qube-suite train --list-recipes\n"
                "  qube-suite train --task balance --steps 500000 --out runs/balance\n"
-               "  qube-suite train --task swingup --steps 3000000 --randomization sim2real",
+               "  qube-suite train --task swingup --steps 3000000 --randomization sim2real\n"
+               "  qube-suite train --task swingup --backend jax   (on a GPU; the 'jax' extra)",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     training.add_argument("--task", default=None, help="task name, e.g. swingup; alone, it runs the task's "
                           "recipe (--list-recipes), with any option of one run (--steps, ...) one run")
     training.add_argument("--recipe", default=None, help="run this recipe (see --list-recipes)")
     training.add_argument("--list-recipes", action="store_true",
                           help="list the recipes: stages, steps, expected wall time, target")
+    training.add_argument("--backend", choices=("sb3", "jax"), default=None,
+                          help="sb3: stable-baselines3 on the numpy domains (default); jax: Brax's PPO on "
+                               "MJX, for a GPU (the 'jax' extra; docs/gpu-training.md)")
     training.add_argument("--algo", choices=("ppo", "sac"), default=None, help="algorithm (default: ppo)")
     training.add_argument("--steps", type=_positive_int, default=None,
                           help="environment steps (default: 2000000)")

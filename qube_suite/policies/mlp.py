@@ -10,11 +10,12 @@ one JSON record, nothing pickled:
   during training; features are normalised as (f - mean) / sqrt(var + epsilon)
   and clipped to +-clip;
 - `meta`: JSON with `format` (2), `feature_map` (`qube_suite.policies.features`),
-  `activation` ("tanh" or "relu"), `squash` (SAC: the output goes through tanh
-  and is scaled from [-1, 1] to [-voltage_limit, voltage_limit]; PPO: the output
-  is the voltage), `epsilon`, `clip`, `voltage_limit` (V), `observation_size`
-  (4, or 5 with a target), `history` (the number k of past observations and
-  voltages the network also sees, 0 for none: `qube_suite.policies.history`),
+  `activation` ("tanh", "relu" or "swish" = x sigmoid(x)), `squash` (SAC and
+  Brax PPO: the output goes through tanh and is scaled from [-1, 1] to
+  [-voltage_limit, voltage_limit]; SB3 PPO: the output is the voltage),
+  `epsilon`, `clip`, `voltage_limit` (V), `observation_size` (4, or 5 with a
+  target), `history` (the number k of past observations and voltages the
+  network also sees, 0 for none: `qube_suite.policies.history`),
   `task`, `algo`, and the record of its training.
 
 Format 1 is format 2 without `history` (no history); this module reads both and
@@ -44,7 +45,8 @@ from qube_suite.policies.history import History, input_size
 
 FORMAT = 2
 READABLE_FORMATS = (1, 2)
-ACTIVATIONS = {"tanh": np.tanh, "relu": lambda x: np.maximum(x, 0.0)}
+ACTIVATIONS = {"tanh": np.tanh, "relu": lambda x: np.maximum(x, 0.0),
+               "swish": lambda x: x / (1.0 + np.exp(-x))}
 REQUIRED_META = ("format", "feature_map", "activation", "squash", "epsilon", "clip", "voltage_limit",
                  "observation_size", "task", "algo")
 

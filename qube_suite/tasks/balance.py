@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from qube_suite.tasks.goal import FollowsTarget, GoalTask
 from qube_suite.tasks.registry import register
+from qube_suite.tasks.starts import ClippedNormalStart
 
 PENDULUM_LIMIT = math.radians(20.0)
 """The pendulum leaving +-20 degrees of upright ends the episode."""
@@ -48,9 +47,8 @@ class Balance(GoalTask):
     v0: first release.
     """
 
-    def initial_state(self, random: np.random.RandomState) -> np.ndarray:
-        std = np.array([START_ANGLE_STD, START_ANGLE_STD, START_VELOCITY_STD, START_VELOCITY_STD])
-        return np.clip(random.normal(0.0, std), -3.0 * std, 3.0 * std)
+    start = ClippedNormalStart((START_ANGLE_STD, START_ANGLE_STD, START_VELOCITY_STD, START_VELOCITY_STD),
+                               3.0)
 
     def pendulum_error(self, physics):
         return physics.pendulum_angle()

@@ -29,6 +29,7 @@ from qube_suite.conventions import (
     ObservationLayout,
 )
 from qube_suite.tasks.elementwise import cos, sin
+from qube_suite.tasks.starts import ClippedNormalStart, UniformStart
 
 SUCCESS_TIME = 2.0
 """An episode succeeds if its Qube is at the task's goal throughout its final 2 s (`QubeTask.succeeded`)."""
@@ -168,9 +169,16 @@ class QubeTask(base.Task):
         else:
             physics.reset_world(world, state)
 
+    start: UniformStart | ClippedNormalStart | None = None
+    """Where episodes start, as data every backend draws from (`qube_suite.tasks.starts`); a task
+    without one overrides `initial_state`."""
+
     def initial_state(self, random: np.random.RandomState) -> np.ndarray:
         """[theta, alpha, dtheta, dalpha] (rad, rad/s) to start an episode from, drawn from `random`."""
-        raise NotImplementedError
+        if self.start is None:
+            raise NotImplementedError(f"{type(self).__name__} has no start distribution: set `start` or "
+                                      "override initial_state")
+        return self.start.draw(random)
 
     def before_step(self, action, physics) -> None:
         """Validate and limit `action` (shape (1,), or (worlds, 1) in a batch), then apply it; a bad

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from qube_suite.angles import wrap_angle
 from qube_suite.tasks.goal import GoalTask
 from qube_suite.tasks.registry import register
+from qube_suite.tasks.starts import UniformStart
 
 START_ARM_RANGE = 0.1
 """Start: theta uniform in +-0.1 rad, ..."""
@@ -48,10 +47,7 @@ class Dampen(GoalTask):
     v0: first release.
     """
 
-    def initial_state(self, random: np.random.RandomState) -> np.ndarray:
-        u = random.uniform(-1.0, 1.0, 4)
-        return np.array([START_ARM_RANGE * u[0], math.pi * u[1],
-                         START_ARM_SPEED * u[2], START_PENDULUM_SPEED * u[3]])
+    start = UniformStart(-1.0, 1.0, scale=(START_ARM_RANGE, math.pi, START_ARM_SPEED, START_PENDULUM_SPEED))
 
     def pendulum_error(self, physics):
         return wrap_angle(physics.pendulum_angle() - math.pi)

@@ -10,6 +10,7 @@ from qube_suite.angles import TAU, wrap_angle
 from qube_suite.tasks.base import QubeTask
 from qube_suite.tasks.elementwise import maximum
 from qube_suite.tasks.registry import register
+from qube_suite.tasks.starts import UniformStart
 
 SUCCESS_REVOLUTIONS = 5
 """An episode succeeds with at least 5 net revolutions."""
@@ -57,8 +58,7 @@ class Rotor(QubeTask):
         revolutions = self._counter.revolutions
         return revolutions if isinstance(revolutions, np.ndarray) else int(revolutions)
 
-    def initial_state(self, random: np.random.RandomState) -> np.ndarray:
-        return random.uniform(-START_NOISE, START_NOISE, 4) + np.array([0.0, math.pi, 0.0, 0.0])
+    start = UniformStart(-START_NOISE, START_NOISE, offset=(0.0, math.pi, 0.0, 0.0))
 
     def succeeded(self, at_goal, terminated: bool, control_frequency: float) -> bool:
         """Whether the finished episode made at least `SUCCESS_REVOLUTIONS` net revolutions (ended by the

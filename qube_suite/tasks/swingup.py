@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from qube_suite.tasks.goal import FollowsTarget, GoalTask
 from qube_suite.tasks.registry import register
+from qube_suite.tasks.starts import UniformStart
 
 START_NOISE = 0.05
 """Start: angles (rad) and velocities (rad/s) uniform within +-0.05 of hanging at rest."""
@@ -49,8 +48,7 @@ class Swingup(GoalTask):
     v0: first release.
     """
 
-    def initial_state(self, random: np.random.RandomState) -> np.ndarray:
-        return random.uniform(-START_NOISE, START_NOISE, 4) + np.array([0.0, math.pi, 0.0, 0.0])
+    start = UniformStart(-START_NOISE, START_NOISE, offset=(0.0, math.pi, 0.0, 0.0))
 
     def pendulum_error(self, physics):
         return physics.pendulum_angle()

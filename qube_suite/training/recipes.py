@@ -28,6 +28,7 @@ from typing import Any
 
 from qube_suite import baselines, suite
 from qube_suite import randomization as randomization_configs
+from qube_suite.mjx import offered
 
 KEEP = ("policy.npz", "best_policy.npz")
 
@@ -63,6 +64,11 @@ class Stage:
     teacher_knows_plant: bool = False
     teacher_settings: dict[str, Any] = dataclasses.field(default_factory=dict)
     task_kwargs: dict[str, Any] = dataclasses.field(default_factory=dict)
+    backend: str = "sb3"
+
+
+BACKENDS = ("sb3", "jax")
+"""Where a stage trains: stable-baselines3 on the numpy domains, or Brax on MJX (`qube_suite.mjx`)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -149,6 +155,15 @@ RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
 )}
 """Recipe name -> recipe; every shipped policy `ppo:<name>` has the recipe `<name>`."""
 
+JAX_RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
+    Recipe("swingup", (Stage("swingup", "swingup", 200_000_000, 5, randomization="sim2real", backend="jax"),),
+           "a swing-up that transfers: >= 90 % success on the held-out plants of benchmarks/held_out.py, "
+           "from scratch on one GPU (docs/gpu-training.md)"),
+)}
+"""The recipes of the JAX backend (`qube-suite train --task T --backend jax`), by name."""
+
+RECIPES_BY_BACKEND = {"sb3": RECIPES, "jax": JAX_RECIPES}
+
 
 def check(recipe: Recipe) -> None:
     """ValueError unless `recipe` can run: known tasks and task settings, inits naming earlier stages,
@@ -158,6 +173,14 @@ def check(recipe: Recipe) -> None:
         where = f"recipe {recipe.name!r}, stage {stage.name!r}"
         if stage.name in seen:
             raise ValueError(f"{where}: a stage of that name comes earlier")
+        if stage.backend not in BACKENDS:
+            raise ValueError(f"{where}: backend must be one of {', '.join(BACKENDS)}, got {stage.backend!r}")
+        if stage.backend == "jax":
+            offered.check_task(stage.task)
+            if (stage.teacher is not None or stage.init is not None or stage.task_kwargs
+                    or stage.exploring_starts is not None or stage.keep != "policy.npz"):
+                raise ValueError(f"{where}: a jax stage trains from scratch on the task's defaults: no "
+                                 "teacher, init, task_kwargs or exploring_starts, and it keeps policy.npz")
         if stage.task not in suite.TASKS_BY_DOMAIN["qube"]:
             raise ValueError(f"{where}: unknown task {stage.task!r}")
         if stage.init is not None and stage.init not in seen:
@@ -192,34 +215,47 @@ def check(recipe: Recipe) -> None:
         raise ValueError(f"recipe {recipe.name!r} has no stages")
 
 
-def finished(directory: pathlib.Path) -> bool:
-    """Whether `directory` holds a finished training run."""
-    return (directory / "training.json").is_file() and (directory / "model.zip").is_file()
+def finished(directory: pathlib.Path, backend: str = "sb3") -> bool:
+    """Whether `directory` holds a finished training run of `backend`."""
+    result = "model.zip" if backend == "sb3" else "policy.npz"
+    return (directory / "training.json").is_file() and (directory / result).is_file()
 
 
 def run(recipe: str | Recipe, out: str | pathlib.Path | None = None, progress: bool = True,
-        **train_kwargs: Any) -> pathlib.Path:
-    """Run `recipe` (a name of `RECIPES` or a `Recipe`) into `out` (default `runs/<name>`), one
-    subdirectory per stage, skipping stages already finished there and continuing an interrupted
-    stage from its latest checkpoint; return the kept policy file.
+        backend: str = "sb3", **train_kwargs: Any) -> pathlib.Path:
+    """Run `recipe` (a name of `RECIPES_BY_BACKEND[backend]` or a `Recipe`) into `out` (default
+    `runs/<name>`, with `_jax` for the jax backend), one subdirectory per stage, skipping stages
+    already finished there and continuing an interrupted sb3 stage from its latest checkpoint;
+    return the kept policy file.
 
-    `train_kwargs` go to every stage's `train` (e.g. `evaluations`, `num_envs`).
+    `train_kwargs` go to every sb3 stage's `train` (e.g. `evaluations`, `num_envs`).
     """
     from qube_suite.training import imitation, train
 
     if isinstance(recipe, str):
-        if recipe not in RECIPES:
-            raise ValueError(f"unknown recipe {recipe!r}; recipes: {', '.join(RECIPES)}")
-        recipe = RECIPES[recipe]
+        table = RECIPES_BY_BACKEND.get(backend)
+        if table is None:
+            raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
+        if recipe not in table:
+            raise ValueError(f"no {backend} recipe {recipe!r}; {backend} recipes: {', '.join(table)}")
+        recipe = table[recipe]
     check(recipe)
-    root = pathlib.Path(out or f"runs/{recipe.name}")
+    suffix = "_jax" if all(stage.backend == "jax" for stage in recipe.stages) else ""
+    root = pathlib.Path(out or f"runs/{recipe.name}{suffix}")
     for number, stage in enumerate(recipe.stages, start=1):
         directory = root / stage.name
-        if finished(directory):
+        if finished(directory, stage.backend):
             print(f"stage {number}/{len(recipe.stages)} {stage.name}: finished in {directory}, kept")
             continue
         print(f"stage {number}/{len(recipe.stages)} {stage.name}: {stage.task}, {stage.steps} steps, "
               f"randomization {stage.randomization or 'none'} (about {stage.minutes:g} min)", flush=True)
+        if stage.backend == "jax":
+            from qube_suite.mjx import training as jax_training
+
+            jax_training.train(stage.task, steps=stage.steps, randomization=stage.randomization or "none",
+                               seed=stage.seed, out=directory, hyperparameters=dict(stage.hyperparameters),
+                               progress=print if progress else None)
+            continue
         if stage.teacher is not None:
             hyperparameters = dict(stage.hyperparameters)
             imitation.imitate(stage.task, stage.teacher, stage.steps, seed=stage.seed,
@@ -245,10 +281,10 @@ def _settings(stage: Stage) -> str:
     return f" ({', '.join(given)})" if given else ""
 
 
-def listing() -> str:
-    """A table of the recipes: name, stages, steps, expected wall time, target."""
+def listing(backend: str = "sb3") -> str:
+    """A table of `backend`'s recipes: name, stages, steps, expected wall time, target."""
     lines = ["| recipe | stages | steps | expected wall time | target |", "|---|---|---|---|---|"]
-    for recipe in RECIPES.values():
+    for recipe in RECIPES_BY_BACKEND[backend].values():
         stages = " → ".join(f"{s.task} {s.steps / 1e6:g} M" + (f" imitating {s.teacher}" if s.teacher else "")
                             + (" built for each plant" if s.teacher_knows_plant else "") + _settings(s)
                             for s in recipe.stages)

@@ -1,0 +1,154 @@
+"""The JAX backend (`qube_suite.mjx`) against the numpy vector environment, and training on it.
+
+    python benchmarks/jax_backend.py throughput [--worlds 256 1024] [--steps 100] [--json FILE]
+    python benchmarks/jax_backend.py train --task swingup --randomization sim2real --steps 150000000 \
+        --out runs/jax_swingup [--json FILE]
+
+`throughput`: env steps per second with a policy network in the loop (Brax's PPO
+policy, randomly initialised, deterministic actions): MJX worlds batched with
+`jax.vmap` inside one `jax.lax.scan` per measurement (compilation excluded), and
+in the same run the numpy vector environment (`gymnasium.make_vec`, native batch of
+MuJoCo rollouts) with the same number of worlds, the same task and preset and the
+same network run by numpy (the peer); nominal plant and `sim2real`.
+`train`: Brax PPO on the backend (`qube_suite.mjx.training`), the policy of every
+evaluation kept as `snapshots/<steps>.npz` for evaluation on the numpy domains
+(`qube-suite eval`, `benchmarks/held_out.py`); end-to-end env steps per second
+between the first and last evaluation (compilation excluded) and the wall times.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from brax.training.agents.ppo import networks as ppo_networks
+
+from qube_suite.mjx import training
+from qube_suite.mjx.environment import QubeMjx
+
+PRESETS = ("none", "sim2real")
+
+
+def mjx_rate(preset: str, worlds: int, steps: int) -> float:
+    """Env steps/s of `worlds` MJX worlds running `steps` steps of swing-up with a policy in the loop."""
+    env = QubeMjx("swingup", randomization=preset)
+    keys = jax.random.split(jax.random.PRNGKey(0), worlds)
+    batch, axes = env.draw_worlds(env.sys, keys) if preset != "none" else (env.sys, None)
+    network = ppo_networks.make_ppo_networks(env.observation_size, env.action_size)
+    params = network.policy_network.init(jax.random.PRNGKey(1))
+    normalizer = _identity_normalizer(env.observation_size)
+
+    def world(sys, key):
+        env.sys = sys
+        state = env.reset(key)
+
+        def body(state, _):
+            logits = network.policy_network.apply(normalizer, params, state.obs)
+            action = jnp.tanh(logits[: env.action_size])
+            return env.step(state, action), None
+
+        state, _ = jax.lax.scan(body, state, None, length=steps)
+        return state.reward
+
+    run = jax.jit(jax.vmap(world, in_axes=(axes, 0)))
+    run(batch, keys).block_until_ready()  # compile
+    start = time.perf_counter()
+    run(batch, keys).block_until_ready()
+    return worlds * steps / (time.perf_counter() - start)
+
+
+def numpy_rate(preset: str, worlds: int, steps: int) -> float:
+    """Env steps/s of the numpy vector environment with `worlds` worlds, the same network in numpy."""
+    import gymnasium
+
+    import qube_suite  # noqa: F401  (registers the environments)
+
+    envs = gymnasium.make_vec("QubeSuite/Swingup-v0", num_envs=worlds,
+                              vectorization_mode="vector_entry_point", randomization=preset)
+    rng = np.random.default_rng(0)
+    sizes = [6, 32, 32, 32, 32, 2]
+    layers = [(rng.normal(size=(b, a)) / np.sqrt(a), np.zeros(b))
+              for a, b in zip(sizes, sizes[1:], strict=False)]
+    observations, _ = envs.reset(seed=0)
+    start = time.perf_counter()
+    for _ in range(steps):
+        theta, alpha = observations[:, 0], observations[:, 1]
+        x = np.stack([np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha), observations[:, 2],
+                      observations[:, 3]], axis=1)
+        for i, (weight, bias) in enumerate(layers):
+            x = x @ weight.T + bias
+            if i < len(layers) - 1:
+                x = x / (1.0 + np.exp(-x))
+        observations, *_ = envs.step(np.tanh(x[:, :1]) * 3.0)
+    rate = worlds * steps / (time.perf_counter() - start)
+    envs.close()
+    return rate
+
+
+def _identity_normalizer(size: int):
+    from brax.training.acme import running_statistics, specs
+
+    return running_statistics.init_state(specs.Array((size,), jnp.dtype("float32")))
+
+
+def throughput(args) -> dict:
+    rows = []
+    for preset in PRESETS:
+        for worlds in args.worlds:
+            row = {"preset": preset, "worlds": worlds,
+                   "mjx_steps_per_s": mjx_rate(preset, worlds, args.steps)}
+            if worlds <= args.numpy_worlds_max:
+                row["numpy_steps_per_s"] = numpy_rate(preset, worlds, max(10, args.steps // 10))
+                row["ratio"] = row["mjx_steps_per_s"] / row["numpy_steps_per_s"]
+            print(json.dumps(row), flush=True)
+            rows.append(row)
+    return {"throughput": rows}
+
+
+def train(args) -> dict:
+    hyperparameters = {} if args.num_envs is None else {"num_envs": args.num_envs}
+    if args.num_evals is not None:
+        hyperparameters["num_evals"] = args.num_evals
+    result = training.train(args.task, steps=args.steps, randomization=args.randomization, seed=args.seed,
+                            out=args.out, hyperparameters=hyperparameters, snapshots=True)
+    (first_steps, _, first_time), (last_steps, _, last_time) = result.evaluations[1], result.evaluations[-1]
+    rate = (last_steps - first_steps) / (last_time - first_time) if last_time > first_time else float("nan")
+    return {"train": {"task": args.task, "randomization": args.randomization, "steps": args.steps,
+                      "wall_time_s": result.wall_time, "evaluations": result.evaluations,
+                      "end_to_end_steps_per_s": rate, "policy": str(result.policy_path)}}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    commands = parser.add_subparsers(dest="command", required=True)
+    rate = commands.add_parser("throughput")
+    rate.add_argument("--worlds", type=int, nargs="+", default=[256, 1024])
+    rate.add_argument("--steps", type=int, default=100)
+    rate.add_argument("--numpy-worlds-max", type=int, default=4096,
+                      help="largest world count the numpy peer runs (it scales linearly)")
+    learn = commands.add_parser("train")
+    learn.add_argument("--task", default="swingup")
+    learn.add_argument("--randomization", default="none")
+    learn.add_argument("--steps", type=int, default=60_000_000)
+    learn.add_argument("--seed", type=int, default=0)
+    learn.add_argument("--num-envs", type=int, default=None)
+    learn.add_argument("--num-evals", type=int, default=None)
+    learn.add_argument("--out", default="runs/jax")
+    for command in (rate, learn):
+        command.add_argument("--json", default=None, help="append the result to this JSON-lines file")
+    args = parser.parse_args()
+    result = throughput(args) if args.command == "throughput" else train(args)
+    result["devices"] = [str(device) for device in jax.devices()]
+    print(json.dumps(result), flush=True)
+    if args.json:
+        with open(args.json, "a") as file:
+            file.write(json.dumps(result) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,203 @@
+"""The Qube's tasks on MJX: a functional environment of one world, batched with `jax.vmap`.
+
+`QubeMjx(task)` follows Brax's environment API (`reset(rng) -> State`,
+`step(state, action) -> State`, `sys`, `observation_size`, `action_size`), so Brax's
+training loop runs it as it is, with `Worlds.draw` as its domain randomization.
+What the world does each control step is the numpy `qube` domain's: the action
+(in [-1, 1]) times the task's voltage limit, through the actuator effects (delay,
+offset, dead zone) to the motor of `qube.xml`; one control period of MuJoCo's step
+(MJX, float32); the sensor effects (quantization, velocity filter, noise) on the
+exact state. The task object itself (`qube_suite.tasks`) gives the reward, the safe
+set and the observation: its formulas run on JAX arrays (`tasks.elementwise`), and
+its start distribution (`tasks.starts`) is drawn with `jax.random`.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from brax.envs.base import Env, State
+from mujoco import mjx
+
+from qube_suite.angles import wrap_angle
+from qube_suite.domains import qube, qube_batch
+from qube_suite.mjx import offered
+from qube_suite.mjx import worlds as world_draws
+from qube_suite.randomization import config as randomization_config
+from qube_suite.tasks import registry
+from qube_suite.tasks.starts import ClippedNormalStart, UniformStart
+from qube_suite.velocity_filter import filtered_velocity
+
+
+class MeasuredQube:
+    """The domain interface's accessors (`domains.interface.QubePhysics`) on one world's measured
+    state [theta, alpha, dtheta, dalpha] (JAX arrays), for the task's formulas."""
+
+    def __init__(self, measured: jax.Array, time: jax.Array):
+        self._measured, self._time = measured, time
+
+    def arm_angle(self):
+        return self._measured[0]
+
+    def pendulum_angle(self):
+        return self._measured[1]
+
+    def arm_velocity(self):
+        return self._measured[2]
+
+    def pendulum_velocity(self):
+        return self._measured[3]
+
+    def time(self):
+        return self._time
+
+
+class QubeMjx(Env):
+    """One simulated Qube running `task`, in JAX.
+
+    Args:
+        task: a name of `offered.TASKS`.
+        randomization: a preset name, mapping or YAML path (`qube_suite.randomization.config`):
+            `sys`, the world `reset` and `step` run unless a training loop swaps in others, is
+            drawn from it with `seed`, and `draw_worlds` draws many.
+        control_frequency: control steps per second (Hz).
+        voltage_limit: largest motor voltage (V); default: the task's.
+        seed: seeds the world draws of `draw_worlds`.
+    """
+
+    def __init__(self, task: str = "swingup", randomization="none", control_frequency: float = 250.0,
+                 voltage_limit: float | None = None, seed: int = 0):
+        offered.check_task(task)
+        qube.check_control_frequency(control_frequency)
+        kwargs = {"observation": "trig"} if voltage_limit is None else {
+            "observation": "trig", "voltage_limit": voltage_limit}
+        self.task = registry.SUITE[task](**kwargs)
+        self.task_name = task
+        self.config = randomization_config.load(randomization)
+        self.control_frequency = float(control_frequency)
+        self.seed = int(seed)
+        self._substeps = qube.substeps_per_control_period(control_frequency)
+        self._delay_length = world_draws.max_delay_steps(self.config) + 1
+        self._effects = set(self.config.effects)
+        self.sys, _ = world_draws.draw(self.config, None, self.seed, self.control_frequency)
+        ids = qube.ElementIds(qube_batch.physics_model(control_frequency))
+        self._positions = jnp.array([ids.arm_qpos, ids.pendulum_qpos])
+        self._velocities = jnp.array([ids.arm_dof, ids.pendulum_dof])
+
+    # -- Brax's environment API ----------------------------------------------------
+
+    @property
+    def observation_size(self) -> int:
+        return 6
+
+    @property
+    def action_size(self) -> int:
+        return 1
+
+    @property
+    def backend(self) -> str:
+        return "mjx"
+
+    def draw_worlds(self, sys, rng: jax.Array):
+        """Brax's `randomization_fn`: as many worlds as `rng` has keys, drawn from the config (world i
+        from `seed + i`), and their `in_axes`. `sys` (the nominal world) is not used."""
+        return world_draws.draw(self.config, int(rng.shape[0]), self.seed, self.control_frequency)
+
+    def reset(self, rng: jax.Array) -> State:
+        """A new episode from the task's start distribution."""
+        rng, start_key = jax.random.split(rng)
+        return self.start(draw_start(self.task.start, start_key), rng)
+
+    def start(self, state: jax.Array, rng: jax.Array) -> State:
+        """An episode from [theta, alpha, dtheta, dalpha] (rad, rad/s) at time 0, 0 V."""
+        data = mjx.make_data(self.sys.model)
+        data = data.replace(qpos=data.qpos.at[self._positions].set(state[:2]),
+                            qvel=data.qvel.at[self._velocities].set(state[2:]))
+        exact = self.exact_state(data)
+        rng, noise_key = jax.random.split(rng)
+        measured = self._quantize(exact)
+        measured = self._add_noise(measured, noise_key)
+        info = {"rng": rng, "measured": measured, "filter": measured,
+                "commands": jnp.zeros(self._delay_length, data.ctrl.dtype)}
+        obs, reward, done = self.rules(measured, data.time)
+        return State(pipeline_state=data, obs=obs, reward=jnp.zeros_like(reward), done=jnp.zeros_like(done),
+                     metrics={}, info=info)
+
+    def step(self, state: State, action: jax.Array) -> State:
+        """One control period holding the voltage `action[0] * voltage_limit` (action clipped to
+        [-1, 1], a non-finite action taken as 0)."""
+        action = jnp.where(jnp.isfinite(action[0]), jnp.clip(action[0], -1.0, 1.0), 0.0)
+        volts = action * self.task.voltage_limit
+        info = dict(state.info)
+        motor, info["commands"] = self._actuate(volts, info["commands"])
+        data = state.pipeline_state
+        data = data.replace(ctrl=jnp.reshape(motor, (1,)).astype(data.ctrl.dtype))
+        for _ in range(self._substeps):
+            data = mjx.step(self.sys.model, data)
+        exact = self.exact_state(data)
+        diverged = ~qube.plausible(exact[2], exact[3])
+        info["rng"], noise_key = jax.random.split(info["rng"])
+        measured = self._quantize(exact)
+        if "velocity_filter" in self._effects:
+            last = info["filter"]
+            velocities = filtered_velocity(last[2:], measured[:2], last[:2], self.sys.filter_pole,
+                                           self.sys.filter_gain)
+            measured = jnp.concatenate([measured[:2], velocities])
+            info["filter"] = measured
+        measured = self._add_noise(measured, noise_key)
+        info["measured"] = measured
+        obs, reward, done = self.rules(measured, data.time)
+        done = jnp.where(diverged, 1.0, done)
+        obs = jnp.where(diverged, state.obs, obs)
+        return state.replace(pipeline_state=data, obs=obs, reward=reward, done=done, info=info)
+
+    def exact_state(self, data: mjx.Data) -> jax.Array:
+        """[theta, alpha, dtheta, dalpha] of a world (rad, rad/s), angles wrapped to (-pi, pi]."""
+        return jnp.concatenate([wrap_angle(data.qpos[self._positions]), data.qvel[self._velocities]])
+
+    # -- the task's rules ------------------------------------------------------------
+
+    def rules(self, measured: jax.Array, time: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+        """Observation, reward and done (1.0 outside the safe set) of the task for one measured
+        state [theta, alpha, dtheta, dalpha], from the task object's own formulas."""
+        view = MeasuredQube(measured, time)
+        obs = jnp.stack([jnp.asarray(value, measured.dtype) for value in self.task.observation_values(view)])
+        reward = jnp.asarray(self.task.get_reward(view), measured.dtype)
+        done = 1.0 - jnp.asarray(self.task.in_safe_set(view), measured.dtype)
+        return obs, reward, done
+
+    # -- effects ---------------------------------------------------------------------
+
+    def _actuate(self, volts: jax.Array, commands: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """The motor voltage (V) for the command `volts`, and the updated delay line (newest last)."""
+        if "action_delay" in self._effects:
+            commands = jnp.concatenate([commands[1:], volts[None]])
+            volts = commands[self._delay_length - 1 - self.sys.delay_steps]
+        if "voltage_offset" in self._effects:
+            volts = volts + self.sys.voltage_offset
+        if "dead_zone" in self._effects:
+            volts = jnp.sign(volts) * jnp.maximum(jnp.abs(volts) - self.sys.dead_zone, 0.0)
+        return volts, commands
+
+    def _quantize(self, exact: jax.Array) -> jax.Array:
+        if "quantization" not in self._effects:
+            return exact
+        q = self.sys.resolution
+        return jnp.concatenate([wrap_angle(q * jnp.round(exact[:2] / q)), exact[2:]])
+
+    def _add_noise(self, measured: jax.Array, key: jax.Array) -> jax.Array:
+        if "observation_noise" not in self._effects:
+            return measured
+        noisy = measured + self.sys.noise_std * jax.random.normal(key, (4,), measured.dtype)
+        return jnp.concatenate([wrap_angle(noisy[:2]), noisy[2:]])
+
+
+def draw_start(start: UniformStart | ClippedNormalStart, key: jax.Array) -> jax.Array:
+    """A start state drawn with `jax.random` from the task's start distribution (`tasks.starts`)."""
+    if isinstance(start, UniformStart):
+        u = jax.random.uniform(key, (4,), minval=start.low, maxval=start.high)
+        return jnp.asarray(start.scale) * u + jnp.asarray(start.offset)
+    if isinstance(start, ClippedNormalStart):
+        std = jnp.asarray(start.std)
+        return jnp.clip(std * jax.random.normal(key, (4,)), -start.clip * std, start.clip * std)
+    raise TypeError(f"no JAX draw for the start distribution {start!r}")

@@ -1,0 +1,22 @@
+"""Which tasks the JAX backend offers, and why it does not offer the others (no JAX needed to ask)."""
+
+from __future__ import annotations
+
+TASKS = ("swingup", "swingup_sparse", "balance", "balance_sparse", "dampen", "dampen_sparse")
+"""Tasks the JAX backend offers: their rules are formulas of the measured state."""
+NOT_OFFERED = {
+    "swingup_follow": "its target schedules are processes with numpy random states of their own",
+    "swingup_follow_sparse": "as swingup_follow",
+    "balance_follow": "as swingup_follow",
+    "balance_follow_sparse": "as swingup_follow",
+    "rotor": "its revolution counter is a process with memory outside the physics",
+}
+"""Registered tasks it does not offer, with the reason."""
+
+
+def check_task(task: str) -> None:
+    """ValueError unless the JAX backend offers `task`, naming the reason where one is known."""
+    if task not in TASKS:
+        why = NOT_OFFERED.get(task)
+        raise ValueError(f"the JAX backend offers the tasks {', '.join(TASKS)}; " + (
+            f"not {task!r}: {why}" if why else f"{task!r} is not one of them"))

@@ -1,0 +1,166 @@
+"""Each simulated world's plant and effect settings, drawn on the host by the numpy randomization code.
+
+A `Worlds` holds an MJX model and the settings of the sensor and actuator effects,
+for one world or, batched along a leading axis, for many (`draw`). The draws are
+`qube_suite.randomization`'s own (`sampling.sample`, with world i's random state
+seeded `seed + i`), written into MuJoCo models by the numpy domain's own
+`write_parameters`: the JAX backend has no second definition of a preset, a
+distribution or a parameter's place in the model. Worlds keep their draw for a
+whole training run (as MuJoCo Playground's domain randomization does), where the
+numpy domains draw again at every episode; thousands of worlds cover the
+distribution instead.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+from collections.abc import Mapping
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from flax import struct
+from mujoco import mjx
+
+from qube_suite.domains import qube, qube_batch
+from qube_suite.randomization.config import Randomization
+from qube_suite.randomization.sampling import sample
+from qube_suite.velocity_filter import VelocityFilter
+
+EFFECTS = ("quantization", "velocity_filter", "observation_noise", "action_delay", "voltage_offset",
+           "dead_zone")
+"""Effects the JAX backend applies, in the numpy domains' order (`randomization.catalog.EFFECTS`)."""
+UNSUPPORTED_EFFECTS = {
+    "observation_delay": "not needed by any preset; a delay line of measured states is not written yet",
+    "saturation": "the tasks' voltage limits (at most 10 V) stay inside the amplifier's range",
+    "control_jitter": "a control period of its own per world needs a timestep per world, which MJX's "
+                      "model options do not batch",
+}
+"""Effects it does not apply, with the reason: a config naming one is refused."""
+
+FRICTION_PARAMETERS = ("arm_friction", "pendulum_friction")
+"""Parameters that need MuJoCo's constraint stage, on for every world when any draws them."""
+
+
+@struct.dataclass
+class Worlds:
+    """One world's plant and effect settings (or many, each field with a leading world axis).
+
+    `resolution`: encoder step (rad), 0 for exact angles; `filter_pole`, `filter_gain`:
+    the velocity filter's pole and gain (1/s), `velocity_filter.filtered_velocity`;
+    `noise_std`: [theta, alpha, dtheta, dalpha] (rad, rad/s); `delay_steps`: action
+    delay (control steps); `voltage_offset`, `dead_zone` (V).
+    """
+
+    model: mjx.Model
+    resolution: jax.Array
+    filter_pole: jax.Array
+    filter_gain: jax.Array
+    noise_std: jax.Array
+    delay_steps: jax.Array
+    voltage_offset: jax.Array
+    dead_zone: jax.Array
+
+
+def check_config(config: Randomization) -> None:
+    """ValueError naming an effect of `config` the JAX backend does not apply, and why."""
+    for name in config.effects:
+        if name in UNSUPPORTED_EFFECTS:
+            raise ValueError(f"the JAX backend does not apply the effect {name!r}: "
+                             f"{UNSUPPORTED_EFFECTS[name]}")
+
+
+def max_delay_steps(config: Randomization) -> int:
+    """The longest action delay (control steps) `config` can draw."""
+    settings = config.effects.get("action_delay")
+    if settings is None:
+        return 0
+    steps = settings.get("steps", 1)
+    return int(getattr(steps, "high", steps))
+
+
+def template_model(control_frequency: float, config: Randomization) -> mujoco.MjModel:
+    """The Qube's model (`qube_batch.physics_model`) with the constraint stage and friction rows on
+    when `config` draws friction: MJX fixes which constraint rows exist when the model is put on the
+    device, so every world must have them (a row with 0 N m of friction does nothing)."""
+    model = qube_batch.physics_model(control_frequency)
+    if any(name in config.parameters for name in FRICTION_PARAMETERS):
+        scratch = mujoco.MjData(model)
+        qube.write_parameters(model, scratch, {name: 1e-9 for name in FRICTION_PARAMETERS})
+    return model
+
+
+def draw(config: Randomization, count: int | None, seed: int, control_frequency: float
+         ) -> tuple[Worlds, Worlds | None]:
+    """`count` worlds drawn from `config` (world i from `RandomState(seed + i)`), batched, and the
+    `in_axes` that vmaps over them; `count` None: one world drawn from `seed`, unbatched, and None.
+    """
+    check_config(config)
+    control_period = 1.0 / control_frequency
+    template = template_model(control_frequency, config)
+    scratch = mujoco.MjData(template)
+    draws = [sample(config, np.random.RandomState(seed + world)) for world in range(count or 1)]
+    models = []
+    for drawn in draws:
+        model = copy.copy(template)
+        overrides = dict(drawn.parameters)
+        for name in FRICTION_PARAMETERS:  # keep every world's friction rows (see template_model)
+            overrides[name] = max(overrides.get(name, 0.0), 1e-9) if name in config.parameters else 0.0
+        qube.write_parameters(model, scratch, overrides)
+        models.append(model)
+    settings = [_effect_settings(drawn.effects, control_period) for drawn in draws]
+    fields = {name: jnp.asarray(np.stack([value[name] for value in settings])) for name in settings[0]}
+    if not count:
+        one = {name: value[0] for name, value in fields.items()}
+        return Worlds(model=mjx.put_model(models[0]), **one), None
+    device_model = mjx.put_model(template)
+    batched = _batched_fields(template, models)
+    model = device_model.replace(**{name: jnp.asarray(value) for name, value in batched.items()})
+    worlds = Worlds(model=model, **fields)
+    model_axes = jax.tree.map(lambda _: None, device_model).replace(**{name: 0 for name in batched})
+    axes = Worlds(model=model_axes, **{name: 0 for name in fields})
+    return worlds, axes
+
+
+def _batched_fields(template: mujoco.MjModel, models: list[mujoco.MjModel]) -> dict[str, np.ndarray]:
+    """Model fields that differ between worlds, stacked: name -> array with a leading world axis."""
+    batched = {}
+    for name in (field.name for field in dataclasses.fields(mjx.Model)):
+        value = getattr(template, name, None)
+        if not isinstance(value, np.ndarray) or value.dtype.kind != "f":
+            continue
+        values = np.stack([getattr(model, name) for model in models])
+        if np.any(values != value):
+            batched[name] = values
+    return batched
+
+
+def _effect_settings(effects: Mapping[str, Mapping], control_period: float) -> dict[str, np.ndarray]:
+    """One world's effect settings as numbers (`Worlds`' fields but the model); absent effects are
+    neutral."""
+    counts = effects.get("quantization", {}).get("counts_per_revolution")
+    cutoff = effects.get("velocity_filter", {}).get("cutoff")
+    pole, gain = (0.0, 0.0) if cutoff is None else _filter(cutoff, control_period)
+    delay = effects.get("action_delay")
+    if delay is None:
+        steps = 0
+    elif "seconds" in delay:
+        steps = int(np.rint(delay["seconds"] / control_period))
+    else:
+        steps = int(delay.get("steps", 1))
+    return {
+        "resolution": np.float64(0.0 if counts is None else 2.0 * math.pi / counts),
+        "filter_pole": np.float64(pole), "filter_gain": np.float64(gain),
+        "noise_std": np.asarray(effects.get("observation_noise", {}).get("std", [0.0] * 4), dtype=np.float64),
+        "delay_steps": np.int32(steps),
+        "voltage_offset": np.float64(effects.get("voltage_offset", {}).get("voltage", 0.0)),
+        "dead_zone": np.float64(effects.get("dead_zone", {}).get("voltage", 0.0)),
+    }
+
+
+def _filter(cutoff: float, control_period: float) -> tuple[float, float]:
+    discrete = VelocityFilter(control_period, cutoff)
+    return float(discrete.pole), float(discrete.gain)

@@ -1,0 +1,216 @@
+"""The JAX backend (qube_suite.mjx) against the numpy domains: the same rules, physics, effects,
+draws and policies. Runs on CPU with small batches (the `jax` extra; skipped without it)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+jax = pytest.importorskip("jax")
+pytest.importorskip("brax")
+pytest.importorskip("mujoco.mjx")
+
+import jax.numpy as jnp  # noqa: E402
+import mujoco  # noqa: E402
+
+from qube_suite import suite  # noqa: E402
+from qube_suite.domains import qube, qube_batch  # noqa: E402
+from qube_suite.mjx import brax_compat, environment, offered, training, worlds  # noqa: E402
+from qube_suite.randomization import config as randomization_config  # noqa: E402
+from qube_suite.randomization.sampling import sample  # noqa: E402
+from qube_suite.tasks import registry  # noqa: E402
+
+EDGE_STATES = np.array([
+    [0.0, 0.0, 0.0, 0.0], [0.0, math.pi, 0.0, 0.0], [0.3, -0.2, 1.0, -2.0],
+    [math.radians(89.0), 0.1, 0.0, 0.0], [math.radians(91.0), 0.1, 0.0, 0.0],
+    [-math.radians(91.0), 3.0, 5.0, 9.0], [0.1, math.radians(19.0), 0.0, 0.0],
+    [0.1, math.radians(21.0), 0.0, 0.0], [-0.5, -math.radians(171.0), -3.0, 12.0],
+    [0.05, math.radians(9.0), 0.0, 0.0], [0.05, math.radians(11.0), 0.0, 0.0],
+])
+
+
+class FloatQube:
+    """The domain interface's accessors on one state, as Python floats (the numpy path)."""
+
+    def __init__(self, state):
+        self._state = [float(x) for x in state]
+
+    def arm_angle(self):
+        return self._state[0]
+
+    def pendulum_angle(self):
+        return self._state[1]
+
+    def arm_velocity(self):
+        return self._state[2]
+
+    def pendulum_velocity(self):
+        return self._state[3]
+
+    def time(self):
+        return 0.0
+
+
+@pytest.mark.parametrize("task", offered.TASKS)
+def test_every_offered_tasks_rules_agree_with_the_numpy_task(task):
+    env = environment.QubeMjx(task)
+    numpy_task = registry.SUITE[task](observation="trig")
+    states = np.concatenate([EDGE_STATES, np.random.default_rng(0).uniform(
+        [-1.7, -math.pi, -20, -40], [1.7, math.pi, 20, 40], (40, 4))])
+    for state in states:
+        obs, reward, done = env.rules(jnp.asarray(state, jnp.float32), jnp.float32(0.0))
+        qube_ = FloatQube(np.float32(state))
+        expected_obs = np.array(numpy_task.observation_values(qube_))
+        np.testing.assert_allclose(np.asarray(obs), expected_obs, rtol=1e-5, atol=1e-5)
+        assert float(reward) == pytest.approx(float(numpy_task.get_reward(qube_)), abs=1e-5), state
+        assert bool(done) == (not numpy_task.in_safe_set(qube_)), state
+
+
+def test_a_task_the_backend_does_not_offer_is_refused_with_its_reason():
+    with pytest.raises(ValueError, match="rotor.*revolution counter"):
+        environment.QubeMjx("rotor")
+    with pytest.raises(ValueError, match="'nonsense' is not one of them"):
+        offered.check_task("nonsense")
+    assert set(offered.TASKS) | set(offered.NOT_OFFERED) == set(suite.TASKS_BY_DOMAIN["qube"])
+
+
+def test_an_effect_the_backend_does_not_apply_is_refused():
+    with pytest.raises(ValueError, match="control_jitter"):
+        environment.QubeMjx("swingup", randomization="moderate")
+
+
+@pytest.mark.parametrize("task", ["swingup", "balance", "dampen"])
+def test_start_states_are_drawn_from_the_tasks_own_distribution(task):
+    start = registry.SUITE[task]().start
+    keys = jax.random.split(jax.random.PRNGKey(3), 4000)
+    drawn = np.asarray(jax.vmap(lambda key: environment.draw_start(start, key))(keys))
+    random = np.random.RandomState(3)
+    expected = np.array([start.draw(random) for _ in range(4000)])
+    assert np.all(drawn.min(axis=0) >= expected.min(axis=0) - 0.05 * expected.std(axis=0) - 1e-6)
+    assert np.all(drawn.max(axis=0) <= expected.max(axis=0) + 0.05 * expected.std(axis=0) + 1e-6)
+    assert np.all(abs(drawn.mean(axis=0) - expected.mean(axis=0)) <= 0.1 * expected.std(axis=0) + 1e-6)
+    np.testing.assert_allclose(drawn.std(axis=0), expected.std(axis=0), rtol=0.08)
+
+
+def _numpy_run(config, start, volts):
+    """Exact and measured states of the numpy domain from `start` under `volts` (one per step)."""
+    env = suite.load("qube", "swingup", task_kwargs={"observation": "trig", "voltage_limit": 10.0},
+                     randomization=config)
+    env.reset()
+    with env.physics.reset_context():
+        env.physics.reset_to(start)
+    exact, measured = [], []
+    for v in volts:
+        assert not env.step(np.array([v])).last()  # the arm stays inside its limits
+        exact.append(env.physics.true_state())
+        measured.append([env.physics.arm_angle(), env.physics.pendulum_angle(), env.physics.arm_velocity(),
+                         env.physics.pendulum_velocity()])
+    return np.array(exact), np.array(measured)
+
+
+def _jax_run(config, start, volts):
+    env = environment.QubeMjx("swingup", randomization=config, voltage_limit=10.0)
+    state = env.start(jnp.asarray(start, jnp.float32), jax.random.PRNGKey(0))
+
+    def body(state, v):
+        state = env.step(state, jnp.reshape(v / 10.0, (1,)))
+        return state, (env.exact_state(state.pipeline_state), state.info["measured"])
+
+    run = jax.jit(lambda state, volts: jax.lax.scan(body, state, volts))
+    _, (exact, measured) = run(state, jnp.asarray(volts, jnp.float32))
+    return np.asarray(exact), np.asarray(measured)
+
+
+def _voltages(steps=150):
+    t = np.arange(steps) / 250.0
+    return 0.6 * np.sin(2 * math.pi * 5.0 * t) + 0.3 * np.sign(np.sin(2 * math.pi * 3.1 * t))
+
+
+def test_mjx_world_follows_the_numpy_domain_nominal():
+    start, volts = np.array([0.1, math.pi - 0.2, 0.5, -1.0]), _voltages()
+    expected, _ = _numpy_run("none", start, volts)
+    exact, measured = _jax_run("none", start, volts)
+    np.testing.assert_allclose(exact, expected, atol=2e-3)
+    np.testing.assert_allclose(measured, exact)
+
+
+def test_mjx_world_follows_the_numpy_domain_with_parameters_and_effects():
+    config = {"parameters": {"arm_friction": 1e-3, "pendulum_friction": 5e-5, "cable_stiffness": 1e-3,
+                             "rotor_inertia": {"distribution": "uniform", "low": 1.5, "high": 1.5},
+                             "arm_damping": {"distribution": "uniform", "low": 3.0, "high": 3.0}},
+              "effects": {"quantization": True, "velocity_filter": True, "action_delay": {"steps": 2},
+                          "voltage_offset": {"voltage": 0.3}, "dead_zone": {"voltage": 0.2}}}
+    start, volts = np.array([0.0, math.pi, 0.0, 0.0]), _voltages()
+    expected_exact, expected_measured = _numpy_run(config, start, volts)
+    exact, measured = _jax_run(config, start, volts)
+    np.testing.assert_allclose(exact, expected_exact, atol=3e-3)
+    resolution = 2 * math.pi / 2048
+    np.testing.assert_allclose(measured[:, :2], expected_measured[:, :2], atol=resolution * 1.01)
+    np.testing.assert_allclose(measured[:, 2:], expected_measured[:, 2:], atol=0.2)
+    assert np.allclose(measured[:, 0] / resolution, np.round(measured[:, 0] / resolution), atol=1e-3)
+    assert not np.allclose(measured, exact, atol=1e-4)  # the effects are on
+
+
+def test_drawn_worlds_carry_the_numpy_draws_written_by_the_numpy_domain():
+    config = randomization_config.load("sim2real")
+    batch, axes = worlds.draw(config, 5, 7, 250.0)
+    template = worlds.template_model(250.0, config)
+    scratch = mujoco.MjData(template)
+    ids = qube.ElementIds(template)
+    for world in range(5):
+        drawn = sample(config, np.random.RandomState(7 + world))
+        model = qube_batch.physics_model(250.0)
+        qube.write_parameters(model, scratch, drawn.parameters)
+        assert float(batch.model.dof_armature[world, ids.arm_dof]) == pytest.approx(
+            model.dof_armature[ids.arm_dof], rel=1e-6)
+        assert float(batch.model.actuator_gainprm[world, ids.motor, 0]) == pytest.approx(
+            model.actuator_gainprm[ids.motor, 0], rel=1e-6)
+        assert float(batch.model.dof_frictionloss[world, ids.pendulum_dof]) == pytest.approx(
+            model.dof_frictionloss[ids.pendulum_dof], rel=1e-5)
+        assert float(batch.model.jnt_stiffness[world, ids.arm_joint]) == pytest.approx(
+            model.jnt_stiffness[ids.arm_joint], rel=1e-6)
+        assert int(batch.delay_steps[world]) == drawn.effects["action_delay"]["steps"]
+    assert axes.model.body_mass == 0 and axes.model.opt.gravity is None and axes.delay_steps == 0
+    assert set(jax.tree.leaves(axes.model)) == {0}  # the rest is shared (None)
+    assert len(set(np.asarray(batch.model.body_mass[:, ids.pendulum]).tolist())) == 5
+
+
+def test_the_numpy_policy_gives_the_brax_policys_actions():
+    from brax.training.acme import running_statistics, specs
+    from brax.training.agents.ppo import networks as ppo_networks
+
+    network = ppo_networks.make_ppo_networks(6, 1, preprocess_observations_fn=running_statistics.normalize)
+    normalizer = running_statistics.init_state(specs.Array((6,), jnp.dtype("float32")))
+    samples = jax.random.normal(jax.random.PRNGKey(0), (500, 6)) * jnp.array([0.5, 0.5, 0.7, 0.7, 3.0, 9.0])
+    normalizer = running_statistics.update(normalizer, samples + 0.2)
+    params = (normalizer, network.policy_network.init(jax.random.PRNGKey(1)), None)
+    act = ppo_networks.make_inference_fn(network)(params, deterministic=True)
+    policy = training.export(params, "swingup", 3.0, {})
+    states = np.random.default_rng(1).uniform([-1.5, -math.pi, -10, -30], [1.5, math.pi, 10, 30], (64, 4))
+    env = environment.QubeMjx("swingup")
+    observations = jnp.stack([env.rules(jnp.asarray(s, jnp.float32), 0.0)[0] for s in states])
+    expected, _ = act(observations, jax.random.PRNGKey(2))
+    np.testing.assert_allclose(policy.actions(states), 3.0 * np.asarray(expected[:, 0]), atol=1e-4)
+
+
+def test_device_put_replicated_stacks_one_copy_per_device():
+    tree = {"a": jnp.arange(3.0), "b": (jnp.ones((2, 2)),)}
+    replicated = brax_compat.device_put_replicated(tree, jax.devices())
+    assert replicated["a"].shape == (len(jax.devices()), 3)
+    np.testing.assert_array_equal(replicated["b"][0][0], np.ones((2, 2)))
+
+
+@pytest.mark.slow
+def test_training_on_the_backend_writes_a_policy_the_numpy_domains_run(tmp_path):
+    from qube_suite import evaluate
+
+    result = training.train("balance", steps=20_000, randomization="sim2real", out=tmp_path, progress=None,
+                            hyperparameters={"num_envs": 16, "num_eval_envs": 4, "num_evals": 2,
+                                             "batch_size": 16, "num_minibatches": 4, "unroll_length": 8,
+                                             "num_updates_per_batch": 2})
+    assert result.policy_path == tmp_path / "policy.npz" and (tmp_path / "training.json").is_file()
+    assert len(result.evaluations) == 2
+    summary = evaluate(str(result.policy_path), domain="qube", task="balance", episodes=2, seed=0)
+    assert len(summary.returns) == 2 and all(np.isfinite(summary.returns))
