@@ -43,6 +43,11 @@ UNSUPPORTED_EFFECTS = {
 
 FRICTION_PARAMETERS = ("arm_friction", "pendulum_friction")
 """Parameters that need MuJoCo's constraint stage, on for every world when any draws them."""
+SOLVER_ITERATIONS = 4
+"""Newton iterations of the friction constraints (at most; MuJoCo's C step allows 100 but converges in
+one or two on the Qube's two friction rows, tests/test_mjx.py): a batch of worlds runs as many as its
+slowest world, so the bound is what a step costs on a GPU."""
+LINE_SEARCH_ITERATIONS = 8
 
 
 @struct.dataclass
@@ -90,6 +95,7 @@ def template_model(control_frequency: float, config: Randomization) -> mujoco.Mj
     if any(name in config.parameters for name in FRICTION_PARAMETERS):
         scratch = mujoco.MjData(model)
         qube.write_parameters(model, scratch, {name: 1e-9 for name in FRICTION_PARAMETERS})
+    model.opt.iterations, model.opt.ls_iterations = SOLVER_ITERATIONS, LINE_SEARCH_ITERATIONS
     return model
 
 
