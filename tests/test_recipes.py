@@ -49,12 +49,35 @@ def test_every_shipped_policy_has_a_recipe_that_matches_its_training_record():
     ({"teacher": "ilqr", "teacher_settings": {"swing_up": "juggle"}}, "teacher_settings: unknown swing_up"),
     ({"task": "swingup_follow", "task_kwargs": {"target": "zigzag"}}, "unknown target schedule 'zigzag'"),
     ({"task": "swingup_follow", "task_kwargs": {"random": 3}}, "drop 'random'"),
+    ({"backend": "tpu"}, "backend must be one of sb3, jax"),
+    ({"backend": "jax", "task": "rotor"}, "not 'rotor': its revolution counter"),
+    ({"backend": "jax", "exploring_starts": 0.5}, "a jax stage trains from scratch"),
 ])
 def test_a_bad_recipe_is_refused_naming_the_stage(change, message):
     stage = dataclasses.replace(Stage("only", "balance", 100, 1), **change)
     with pytest.raises(ValueError, match=message) as error:
         recipes.check(Recipe("bad", (stage,), "nothing"))
     assert "randomization" in message or "stage 'only'" in str(error.value)
+
+
+@pytest.mark.parametrize("name", list(recipes.JAX_RECIPES))
+def test_every_jax_recipe_is_valid(name):
+    recipes.check(recipes.JAX_RECIPES[name])
+    assert all(stage.backend == "jax" for stage in recipes.JAX_RECIPES[name].stages)
+
+
+def test_train_with_the_jax_backend_runs_its_recipe_and_refuses_options_it_cannot_take(monkeypatch, tmp_path,
+                                                                                         capsys):
+    calls = []
+    monkeypatch.setattr(recipes, "run",
+                        lambda name, **kwargs: calls.append((name, kwargs["backend"])) or tmp_path)
+    assert cli.main(["train", "--task", "swingup", "--backend", "jax"]) == 0
+    assert calls == [("swingup", "jax")]
+    assert cli.main(["train", "--task", "swingup", "--backend", "jax", "--algo", "sac"]) == 2
+    refusal = "--backend jax takes --steps, --seed, --randomization of one run, not --algo"
+    assert refusal in capsys.readouterr().err
+    assert cli.main(["train", "--list-recipes", "--backend", "jax"]) == 0
+    assert "| swingup | swingup 200 M (sim2real)" in capsys.readouterr().out
 
 
 def test_listing_shows_every_recipe_with_its_steps_and_time(capsys):

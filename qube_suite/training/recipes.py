@@ -176,7 +176,10 @@ def check(recipe: Recipe) -> None:
         if stage.backend not in BACKENDS:
             raise ValueError(f"{where}: backend must be one of {', '.join(BACKENDS)}, got {stage.backend!r}")
         if stage.backend == "jax":
-            offered.check_task(stage.task)
+            try:
+                offered.check_task(stage.task)
+            except ValueError as error:
+                raise ValueError(f"{where}: {error}") from None
             if (stage.teacher is not None or stage.init is not None or stage.task_kwargs
                     or stage.exploring_starts is not None or stage.keep != "policy.npz"):
                 raise ValueError(f"{where}: a jax stage trains from scratch on the task's defaults: no "
