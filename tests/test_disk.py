@@ -51,7 +51,7 @@ def test_the_model_file_carries_the_parameter_table():
 
 
 def test_the_motor_rows_are_the_qubes_own():
-    from qube_suite import parameters as shared
+    from qube_suite.devices.qube import parameters as shared
 
     for name in parameters.MOTOR_NAMES:
         assert parameters.PARAMETERS[name] is shared.PARAMETERS[name]

@@ -35,8 +35,8 @@ from typing import Any
 import numpy as np
 
 from qube_suite import suite
-from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.capabilities import HasBoard
+from qube_suite.devices.qube.controllers.model import RigidBodyModel
 from qube_suite.recording import Recorder
 
 EXCITATION_VOLTAGE = 6.0

@@ -16,7 +16,7 @@ at both ends, and integrated by parts,
                torque = K s c theta'^2 + mp Lr l s theta' alpha' + mp g l s - Dp alpha' - Fp sign(alpha')
 
 with s, c of alpha + pendulum_encoder_offset and the coefficients of `baselines.model`
-(the rigid-body model of `assets/qube.xml`). The weak form needs the angles' first
+(the rigid-body model of `devices/qube/model.xml`). The weak form needs the angles' first
 derivative only, and only under an integral against a smooth weight: the smoothing
 filter's error on fast motion (its velocities are off by 0.05 rad/s RMS on the
 substitute) averages out instead of biasing the estimates, as accelerations from a
@@ -48,9 +48,9 @@ import mujoco.minimize
 import numpy as np
 from scipy.ndimage import minimum_filter1d
 
-from qube_suite import parameters
 from qube_suite.calibration.identifiability import FITTED, OFFSETS, Fitted
 from qube_suite.calibration.measurements import Measurements
+from qube_suite.devices.qube import parameters
 
 SLIDING_SPEED = 0.05
 """A joint counts as sliding where its speed stays above this (rad/s) across the smoothing window."""

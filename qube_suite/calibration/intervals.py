@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from qube_suite import parameters
 from qube_suite.calibration.fit import NAMES, SCALES, VOLTAGE_ONLY, FitResult
 from qube_suite.calibration.identifiability import FITTED, FIXED, OFFSETS, TORQUE_SCALED
+from qube_suite.devices.qube import parameters
 
 Z95 = 1.959963984540054
 """Two-sided 95 % quantile of the normal distribution."""

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from qube_suite.tasks.goal import FollowsTarget, GoalTask
+from qube_suite.devices.qube.tasks.goal import FollowsTarget, GoalTask
 from qube_suite.tasks.registry import register
 
 PENDULUM_LIMIT = math.radians(20.0)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from qube_suite.angles import wrap_angle
-from qube_suite.tasks.goal import GoalTask
+from qube_suite.devices.qube.tasks.goal import GoalTask
 from qube_suite.tasks.registry import register
 
 START_ARM_RANGE = 0.1
