@@ -15,9 +15,10 @@ from qube_suite.devices.qube import parameters
 from qube_suite.devices.qube import simulation as qube
 from qube_suite.devices.qube.controllers import dampen, lqr
 from qube_suite.devices.qube.controllers.model import RigidBodyModel
+from qube_suite.devices.qube.tasks import Dampen, Swingup
 from qube_suite.environment import Environment
 from qube_suite.evaluation import policy_for
-from qube_suite.tasks import SUITE, Dampen, Swingup
+from qube_suite.tasks import SUITE
 
 ROBUSTNESS = [{"pendulum_mass": 1.2 * parameters.NOMINAL["pendulum_mass"]},
               {"arm_damping": 100 * parameters.NOMINAL["arm_damping"]},
