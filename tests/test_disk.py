@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from qube_suite import devices, suite
+from qube_suite import devices, recording, suite
 from qube_suite.devices.qube_disk import controllers, parameters, simulation, substitute
 from qube_suite.evaluation import evaluate
 from qube_suite.hardware import _hil_sim
@@ -219,3 +219,23 @@ def test_the_learned_position_policy_follows_the_targets(domain):
     """PPO (250 k steps in simulation) keeps the disk near its targets on both domains."""
     result = evaluate(mlp.load(POLICY), domain=domain, task="position", episodes=2)
     assert result.mean_return > 1700.0, result.to_dict()
+
+
+@pytest.mark.parametrize("domain", ["qube_disk", "qube_disk_hardware"])
+def test_a_recording_of_the_disk_reads_back_with_its_own_state_columns(domain, tmp_path):
+    env = suite.load(domain, "speed", task_kwargs={"random": 0}, environment_kwargs={"time_limit": 0.2})
+    path = tmp_path / "disk.jsonl"
+    speeds = []
+    with recording.Recorder(path, env):
+        timestep = env.reset()
+        speeds.append(env.physics.qube_state()[1])
+        while not timestep.last():
+            timestep = env.step([2.0])
+            speeds.append(env.physics.qube_state()[1])
+    env.close()
+    episode = recording.load_recording(path).episodes[0]
+    assert "alpha" not in episode.data
+    np.testing.assert_array_equal(episode["disk_velocity"], speeds)
+    assert episode["disk_angle"][-1] > 0.0
+    if domain.endswith("_hardware"):
+        assert episode["raw_encoder_disk"][-1] != 0 and np.all(np.isfinite(episode["raw_current"]))

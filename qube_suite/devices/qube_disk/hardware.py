@@ -75,6 +75,8 @@ class Physics(BoardClockAndLed, control.Physics):
 
     paced_by_board = True
     physics_error = None
+    state_names = conventions.STATE_NAMES
+    """The entries of `qube_state()`: what recordings name their state columns."""
 
     def __init__(self, control_frequency: float = 250.0, board: str = SIMULATED, device: str | None = None,
                  parameters: dict[str, float] | None = None, realtime: bool | None = None,
