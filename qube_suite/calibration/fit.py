@@ -158,6 +158,7 @@ class Model:
 
     @property
     def names(self) -> tuple[str, ...]:
+        """The unknowns' names, in the fit's order."""
         return tuple(q.name for q in self.unknowns)
 
     @property
@@ -167,11 +168,13 @@ class Model:
 
     @property
     def lower(self) -> np.ndarray:
+        """Lower bounds of the scaled unknowns."""
         return np.array([0.3 if name in self.positive else (-30.0 if name.endswith("offset") else 0.0)
                          for name in self.names])
 
     @property
     def upper(self) -> np.ndarray:
+        """Upper bounds of the scaled unknowns."""
         return np.array([3.0 if name in self.positive else 30.0 for name in self.names])
 
 
@@ -278,10 +281,12 @@ class FitResult:
 
     @property
     def names(self) -> tuple[str, ...]:
+        """The unknowns' names, in order (the model's)."""
         return self.model.names
 
     @property
     def scales(self) -> np.ndarray:
+        """The unknowns' scales (the model's)."""
         return self.model.scales
 
     @property
