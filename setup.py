@@ -9,7 +9,8 @@ from setuptools import Extension, setup
 setup(
     ext_modules=cythonize(
         [Extension("qube_suite.hardware._hil_sim", ["qube_suite/hardware/_hil_sim.pyx"]),
-         Extension("qube_suite.baselines._ilqr", ["qube_suite/baselines/_ilqr.pyx"])],
+         Extension("qube_suite.devices.qube.controllers._ilqr",
+                   ["qube_suite/devices/qube/controllers/_ilqr.pyx"])],
         compiler_directives={"language_level": "3"},
     ),
 )

@@ -35,9 +35,10 @@ import time
 
 import numpy as np
 
-from qube_suite import baselines, calibration, evaluate, parameters
+from qube_suite import baselines, calibration, evaluate
 from qube_suite.calibration import fit, intervals, measurements
 from qube_suite.calibration.identifiability import FITTED
+from qube_suite.devices.qube import parameters
 from qube_suite.hardware.plant import plant_parameters
 
 RELATIVE = {"pendulum_mass": 0.30, "pendulum_length": 0.10, "motor_resistance": 0.25,

@@ -5,7 +5,7 @@ On the same experiments on hidden plants of the substitute (drawn as in
 
 * `equation error`: `qube_suite.calibration.fit` (the Qube's momentum balances and motor
   circuit, weak form, `mujoco.minimize.least_squares`);
-* `output error`: the simulated Qube (`domains.qube`, MuJoCo) rolled out over short
+* `output error`: the simulated Qube (`devices.qube.simulation`, MuJoCo) rolled out over short
   windows (multiple shooting: `WINDOW` s from every `SPACING` s of the training blocks,
   each from the lag-free filter's state at its start) under the recorded voltages,
   its angles fitted to the encoders' by `mujoco.minimize.least_squares` over the
@@ -32,7 +32,7 @@ import numpy as np
 
 from qube_suite import calibration
 from qube_suite.calibration import experiment, fit, measurements
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
 
 sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
 from calibration import hidden_plant, truth  # noqa: E402  (the benchmark beside this one)

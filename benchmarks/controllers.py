@@ -1,6 +1,6 @@
 """Every controller on every task it is meant for, in simulation and on the hardware path.
 
-Runs each controller of `qube_suite.baselines.CONTROLLERS` on each task in its
+Runs each controller of `qube_suite.devices.qube.controllers.CONTROLLERS` on each task in its
 `tasks`, on the `qube` (MuJoCo) and `qube_hardware` (substitute board) domains at
 250 Hz and 3 V, with `qube_suite.evaluate` (seeds 0 .. episodes-1; the controller
 built by `baselines.for_environment`, so it knows the domain's latency), and
@@ -75,7 +75,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=20, help="seeds 0 .. episodes-1 per row")
     parser.add_argument("--domains", nargs="*", default=list(suite.TASKS_BY_DOMAIN))
-    parser.add_argument("--controllers", nargs="*", default=list(baselines.CONTROLLERS))
+    parser.add_argument("--controllers", nargs="*", default=list(baselines.names()))
     parser.add_argument("--tasks", nargs="*", default=None, help="only these tasks")
     parser.add_argument("--page", type=pathlib.Path, default=None,
                         help="write the table between the results markers of this file")
@@ -83,7 +83,7 @@ def main() -> None:
 
     results: dict[tuple[str, str], dict[str, EvaluationResult]] = {}
     for name in args.controllers:
-        for task in baselines.CONTROLLERS[name].tasks:
+        for task in baselines.names()[name].tasks:
             if args.tasks and task not in args.tasks:
                 continue
             for domain in args.domains:

@@ -2,7 +2,7 @@
 
 Runs the LQR balance controller (`baselines.make("balance")`, designed on the
 nominal model) on the `balance` task, and a controller named "swingup" on the
-`swingup` task when `qube_suite.baselines.CONTROLLERS` has one, with one
+`swingup` task when `qube_suite.devices.qube.controllers.CONTROLLERS` has one, with one
 sensor/actuator effect or plant detail at a time at increasing strength; the
 first level of every row is the nominal simulation. An episode succeeds when it
 runs to the time limit with the pendulum within 10 degrees of upright over its
@@ -143,7 +143,7 @@ def main() -> None:
     args = parser.parse_args()
 
     tasks = {"balance": "balance"}
-    if "swingup" in baselines.CONTROLLERS:
+    if "swingup" in baselines.names():
         tasks["swingup"] = "swingup"
     all_results = {}
     for task, controller_name in tasks.items():

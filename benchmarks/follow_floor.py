@@ -4,7 +4,7 @@ A controller that follows a steps schedule cannot know the next target, so the
 best it can do after each jump is the best crossing from rest at the old target
 to rest at the new one. For each step size (every 5 degrees up to twice the
 amplitude) this script plans that crossing offline on the closed-form model of
-the nominal Qube with the iLQR kernel (`qube_suite.baselines.ilqr`):
+the nominal Qube with the iLQR kernel (`qube_suite.devices.qube.controllers.ilqr`):
 
 * 1.6 s of knots from rest upright with the arm at -size/2, reference +size/2;
 * cost: arm weight 200 (a large weight, close to a shortest crossing), no arm
@@ -34,10 +34,10 @@ import argparse
 import math
 
 import numpy as np
-from qube_suite.baselines._ilqr import Kernel
+from qube_suite.devices.qube.controllers._ilqr import Kernel
 
 from qube_suite import baselines, suite
-from qube_suite.baselines.ilqr import Cost
+from qube_suite.devices.qube.controllers.ilqr import Cost
 from qube_suite.evaluation import evaluate
 from qube_suite.tasks.base import success_steps
 

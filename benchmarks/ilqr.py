@@ -4,7 +4,7 @@
    states and voltages, against the exact linearisation of the simulator
    (central differences of MuJoCo's own RK4 step, `baselines.linearization`):
    * closed form: the rigid-body model's Jacobian chained through RK4 (the kernel);
-   * `mujoco.mjd_transitionFD` on qube.xml, which refuses RK4, with the Euler and
+   * `mujoco.mjd_transitionFD` on model.xml, which refuses RK4, with the Euler and
      the implicitfast integrators at 4 ms;
    error as the largest |entry - exact| relative to the largest |exact entry| of
    each of A and B (median and worst over the states), and time per Jacobian.
@@ -27,9 +27,9 @@ import time
 import mujoco
 import numpy as np
 
-from qube_suite.baselines.ilqr import IterativeLQR, reference_iteration
-from qube_suite.baselines.linearization import linearize
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
+from qube_suite.devices.qube.controllers.ilqr import IterativeLQR, reference_iteration
+from qube_suite.devices.qube.controllers.linearization import linearize
 
 H = 1 / 250
 
@@ -42,7 +42,7 @@ def random_states(count: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
 
 
 def fd_transition(integrator: int):
-    """A function (state, volts) -> (A, B) by `mjd_transitionFD` on qube.xml with `integrator` at 4 ms."""
+    """A function (state, volts) -> (A, B) by `mjd_transitionFD` on model.xml with `integrator` at 4 ms."""
     model = mujoco.MjModel.from_xml_path(str(qube.MODEL_PATH))
     model.opt.timestep = H
     model.opt.integrator = integrator

@@ -181,7 +181,7 @@ def run_task(task: str, controllers: Sequence[str], episodes: int, plants: Seque
                 "held-out, nominal": [
                     ("qube_hardware", seed, {"plant": episode_plant(plant, seed)}, None)
                     for plant in plants for seed in range(plant_episodes)]}
-        if name in baselines.CONTROLLERS:
+        if name in baselines.names():
             jobs["held-out, calibrated"] = [
                 ("qube_hardware", seed, {"plant": episode_plant(plant, seed)}, calibrated)
                 for plant, calibrated in zip(plants, calibrations, strict=True)

@@ -16,7 +16,7 @@ estimated on the 0.1 s before each start, recorded voltages replayed; both angle
 * a figure of recorded against predicted angles (`--figure`), and the wall time.
 
     python benchmarks/real_qube.py [--data DIR] [--out FILE.json] [--figure FILE.png] [--smoothed-start]
-    python benchmarks/real_qube.py --save qube_suite/assets/real_qube_servo2.yaml   # only that
+    python benchmarks/real_qube.py --save qube_suite/devices/qube/real_qube_servo2.yaml   # only that
 
 `--residual-structure` instead fits all ten chirps (latency 1.5 samples) and reports how much of
 the arm's momentum-balance residual candidate terms explain (least squares on their weak-form
@@ -24,7 +24,7 @@ projections): a hardening cable (theta^3), Stribeck friction, a per-recording to
 a per-recording cable stiffness. `--smoothed-start` starts each prediction from the zero-phase
 filter's state at its start (the metric of the data's README, which peeks 5 samples ahead)
 instead of a state fitted to the 0.1 s before it. `--save` writes the calibration on all ten
-chirps, as shipped in the package (`qube_suite.parameters.REAL_QUBE_SERVO2`), and stops.
+chirps, as shipped in the package (`qube_suite.devices.qube.parameters.REAL_QUBE_SERVO2`), and stops.
 """
 
 from __future__ import annotations
@@ -37,8 +37,9 @@ import time
 
 import numpy as np
 
-from qube_suite import calibration, parameters
+from qube_suite import calibration
 from qube_suite.calibration import calibration_file, prediction, recordings
+from qube_suite.devices.qube import parameters
 
 HORIZONS = (0.1, 0.5, 1.0)
 SMOOTHED_START = False

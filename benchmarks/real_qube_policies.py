@@ -1,7 +1,7 @@
 """The shipped controllers and policies on a simulated real Qube: success against the nominal model.
 
 Runs each (task, policy) pair for `--episodes` seeded episodes in simulation of the nominal
-model and of the calibrated real Qube-Servo 2 (`qube_suite.parameters.REAL_QUBE_SERVO2`:
+model and of the calibrated real Qube-Servo 2 (`qube_suite.devices.qube.parameters.REAL_QUBE_SERVO2`:
 its parameters, latency, voltage dead zone, cable and encoder offset), and prints the success
 rates side by side.
 
@@ -13,7 +13,8 @@ from __future__ import annotations
 import argparse
 import time
 
-from qube_suite import evaluate, parameters
+from qube_suite import evaluate
+from qube_suite.devices.qube import parameters
 
 PAIRS = (("swingup", "swingup"), ("balance", "balance"), ("swingup", "ppo:swingup"),
          ("swingup", "ppo:swingup_adaptive"), ("balance", "ppo:balance"))

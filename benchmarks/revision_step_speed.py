@@ -11,9 +11,10 @@ other processes on a shared machine falls on both alike. Steps are timed in CPU
 time of the process (`time.process_time`), which other processes' share of a busy
 machine does not inflate as it does wall time. Prints the best and the median CPU
 time per step of each version and their ratio. Only the pure-Python parts
-are compared: an exported version gets the working tree's compiled extensions (build
-them first: `python setup.py build_ext --inplace`), which the package imports but the
-simulated step does not run.
+are compared: an exported version gets the working tree's compiled extensions, each put
+beside that version's own `.pyx` of the same name wherever it keeps it (build them first:
+`python setup.py build_ext --inplace`); the package imports them but the simulated step does
+not run them.
 """
 
 from __future__ import annotations
@@ -79,8 +80,11 @@ def export(revision: str, folder: pathlib.Path) -> pathlib.Path:
     archive = subprocess.run(["git", "-C", str(REPOSITORY), "archive", revision, "qube_suite"],
                              check=True, capture_output=True).stdout
     subprocess.run(["tar", "-x", "-C", str(target)], input=archive, check=True)
-    for extension in (REPOSITORY / "qube_suite").rglob("*.so"):
-        shutil.copy(extension, target / extension.relative_to(REPOSITORY))
+    built = {path.name.split(".")[0]: path for path in (REPOSITORY / "qube_suite").rglob("*.so")}
+    for source in (target / "qube_suite").rglob("*.pyx"):  # where that revision keeps each extension
+        if source.stem not in built:
+            raise SystemExit(f"no compiled {source.stem} here: run `python setup.py build_ext --inplace`")
+        shutil.copy(built[source.stem], source.with_name(built[source.stem].name))
     return target
 
 

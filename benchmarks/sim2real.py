@@ -257,7 +257,7 @@ def score(job: dict) -> dict:
     run, path, condition = job["run"], job["path"], job["condition"]
     episodes, seed = job["episodes"], job["seed"]
     domain = CONDITIONS[condition][0] if condition in CONDITIONS else "qube_hardware"
-    if path in baselines.CONTROLLERS:  # a controller, on a board: one step of latency
+    if path in baselines.names():  # a controller, on a board: one step of latency
         policy = path if job.get("parameters") is None else baselines.make(
             path, latency_steps=1, parameters=job["parameters"])
     else:

@@ -1,6 +1,6 @@
 """The shortest swing-up of the nominal Qube under the voltage limit and the arm's range, by iLQR offline.
 
-For a horizon T, iLQR (the controller's kernel, `qube_suite.baselines.ilqr`) plans
+For a horizon T, iLQR (the controller's kernel, `qube_suite.devices.qube.controllers.ilqr`) plans
 from rest hanging to rest upright with the arm centred: a terminal cost 1000
 times the running one, the voltage within +-limit (3 V by default), the arm
 paying beyond +-80 degrees. T is bisected between 0.4 s and 2 s, each plan
@@ -20,12 +20,12 @@ import argparse
 import math
 
 import numpy as np
-from qube_suite.baselines._ilqr import Kernel
+from qube_suite.devices.qube.controllers._ilqr import Kernel
 
 from qube_suite import baselines, suite
-from qube_suite.baselines.ilqr import Cost
-from qube_suite.baselines.model import RigidBodyModel
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
+from qube_suite.devices.qube.controllers.ilqr import Cost
+from qube_suite.devices.qube.controllers.model import RigidBodyModel
 
 H = 1 / 250
 ARM_RANGE = math.radians(80.0)

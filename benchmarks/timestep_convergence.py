@@ -18,7 +18,7 @@ import time
 import mujoco
 import numpy as np
 
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
 
 CONTROL_PERIOD = 0.004
 STEPS = 500

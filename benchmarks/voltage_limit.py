@@ -1,6 +1,6 @@
 """Evidence for the default voltage limit: the smallest in [3, 10] V allowing a swing-up within +-90 degrees.
 
-Runs the sampling MPC swing-up (`qube_suite.baselines.SamplingMPC`) on the nominal
+Runs the sampling MPC swing-up (`qube_suite.devices.qube.controllers.SamplingMPC`) on the nominal
 simulated Qube at increasing voltage limits and stops at the first limit where
 every seed swings up and balances without the arm leaving +-90 degrees. Limits
 below the allowed range are shown for context. One trajectory at the chosen limit

@@ -16,7 +16,7 @@ import pathlib
 import imageio.v3 as iio
 
 from qube_suite import media, suite
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
 
 HERE = pathlib.Path(__file__).resolve().parent
 

@@ -172,7 +172,7 @@ def _vector_step(num_envs: int, randomization: str | None = None) -> Callable[[]
 def _raw_mj_step() -> Callable[[int], float]:
     import mujoco
 
-    from qube_suite.domains import qube
+    from qube_suite.devices.qube import simulation as qube
 
     model = qube.make_physics().model.ptr
     data = mujoco.MjData(model)
@@ -185,7 +185,8 @@ def _raw_rollout(num_worlds: int, control_steps: int = 1) -> Callable[[], Callab
         import mujoco
         import mujoco.rollout
 
-        from qube_suite.domains import qube, qube_batch
+        from qube_suite.devices.qube import batch as qube_batch
+        from qube_suite.devices.qube import simulation as qube
 
         model = qube_batch.physics_model(250.0)
         substeps = qube.substeps_per_control_period(250.0)
@@ -252,7 +253,7 @@ def measurements(vector_sizes=VECTOR_SIZES, randomized_sizes=RANDOMIZED_SIZES) -
     rows += [
         Measurement(PEER, _gymnasium_step("InvertedPendulum-v5")),
         Measurement(DM_PEER, _dm_env_step(_cartpole)),
-        Measurement("raw MuJoCo: Python loop of mj_step on qube.xml", _raw_mj_step),
+        Measurement("raw MuJoCo: Python loop of mj_step on model.xml", _raw_mj_step),
     ]
     for n in vector_sizes:
         rows.append(Measurement(f"raw mujoco.rollout, {ROLLOUT_THREADS} threads, N={n}", _raw_rollout(n),

@@ -15,6 +15,7 @@ checked at run time): nothing to inherit or register.
 | `NeedsResetControllers` | the hardware domain | `suite.load` |
 | `HasDesignParameters` | the hardware domain | `baselines.for_environment` |
 | `Closable` | the simulation | `Environment.closed` |
+| `NamedState` | a device's domains whose state is not the pendulum's | the recorder (state columns) |
 """
 
 from __future__ import annotations
@@ -107,3 +108,12 @@ class Closable(Protocol):
     @property
     def closed(self) -> bool:
         """Whether `close()` was called."""
+
+
+@runtime_checkable
+class NamedState(Protocol):
+    """A domain whose `qube_state()` is not the pendulum's [theta, alpha, dtheta, dalpha]: it names its
+    entries."""
+
+    state_names: tuple[str, ...]
+    """The names of `qube_state()`'s entries, in order."""

@@ -42,8 +42,8 @@ EPILOG = """examples:
 
 def _list(args: argparse.Namespace) -> int:
     from qube_suite import baselines, randomization, suite
+    from qube_suite.devices.qube.tasks import SUITE
     from qube_suite.policies import shipped
-    from qube_suite.tasks import SUITE
     from qube_suite.wrappers import gymnasium_id
 
     print("domains:", ", ".join(suite.TASKS_BY_DOMAIN))
@@ -56,8 +56,8 @@ def _list(args: argparse.Namespace) -> int:
         print("  " + "  ".join(cells).rstrip())
     print("\nrandomization presets (--randomization; or a YAML file):", ", ".join(randomization.PRESETS))
     print("\ncontrollers (--controller) and the tasks they suit:")
-    width = max(map(len, baselines.CONTROLLERS))
-    for name, controller in baselines.CONTROLLERS.items():
+    width = max(map(len, baselines.names()))
+    for name, controller in baselines.names().items():
         print(f"  {name.ljust(width)}  {', '.join(getattr(controller, 'tasks', ())) or 'any'}")
     print("\nshipped policies (--controller, or --policy FILE.npz):", ", ".join(shipped()) or "none")
     return 0
@@ -203,8 +203,8 @@ def _make_policy(args: argparse.Namespace, environment: Any) -> tuple[Any, str]:
 
 def _note_if_meant_for_other_tasks(name: str, policy: Any, task: str) -> None:
     """Tell the user on stderr when the controller or policy is meant for other tasks than `task`."""
+    from qube_suite.devices.qube.tasks import SUITE
     from qube_suite.evaluation import meant_for
-    from qube_suite.tasks import SUITE
 
     suited = meant_for(policy) if task in SUITE else ()  # an unknown task is an error of its own
     if suited and task not in suited:

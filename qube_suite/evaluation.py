@@ -80,7 +80,7 @@ class EvaluationResult:
 
 def policy_for(spec: str, environment, domain: str = "qube") -> Callable[[Any], float]:
     """The policy `spec` names, for a suite `environment` of `domain`: a controller of the domain's
-    device (the pendulum's `baselines.CONTROLLERS`) built by its `for_environment`, a shipped learned
+    device (`baselines.names(domain)`) built by its `for_environment`, a shipped learned
     policy ("ppo:balance") or the path of a policy file (.npz). Raises ValueError naming the valid ones."""
     controllers = devices.domain(domain).device.controller_module()
     if spec in controllers.CONTROLLERS:
@@ -98,8 +98,8 @@ def meant_for(policy: str | Callable[[Any], float]) -> tuple[str, ...]:
     """The tasks a controller (by name), learned policy (by name or file) or policy object is
     meant for; () for any task, or for a name `policy_for` will refuse."""
     if isinstance(policy, str):
-        if policy in baselines.CONTROLLERS:
-            return tuple(getattr(baselines.CONTROLLERS[policy], "tasks", ()))
+        if policy in baselines.names():
+            return tuple(getattr(baselines.names()[policy], "tasks", ()))
         if not names_a_policy(policy):
             return ()
         policy = load_policy(policy)
@@ -114,7 +114,7 @@ def evaluate(policy: str | Callable[[Any], float], domain: str = "qube", task: s
     """Run `episodes` episodes (seeds `seed`, `seed + 1`, ...) of `policy` and score them.
 
     Args:
-        policy: a controller name from `qube_suite.baselines.CONTROLLERS` (built by
+        policy: a controller name from `qube_suite.devices.qube.controllers.CONTROLLERS` (built by
             `baselines.for_environment`: the environment's control frequency, voltage
             limit and latency), a learned policy for `qube_suite.policies.load_policy`
             ("ppo:balance" or a policy file's path), or any callable mapping a dm_env

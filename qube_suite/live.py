@@ -174,7 +174,7 @@ class Twin:
     """The simulated Qube drawn in the measured angles and LED colour (MuJoCo's offscreen renderer)."""
 
     def __init__(self):
-        from qube_suite.domains import qube
+        from qube_suite.devices.qube import simulation as qube
         from qube_suite.media import FrameRenderer
 
         self._physics = qube.make_physics()

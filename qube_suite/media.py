@@ -191,7 +191,7 @@ class VideoRecorder:
     def film(self, trace: EpisodeTrace, control_frequency: float) -> None:
         """Film an episode from its trace (measured states and LED colours) after it has run: how
         hardware episodes are filmed, since rendering takes longer than a sample."""
-        from qube_suite.domains import qube
+        from qube_suite.devices.qube import simulation as qube
 
         fps = self._fps(control_frequency)
         twin = qube.make_physics(control_frequency)

@@ -11,9 +11,10 @@
 
 The recorder observes an `Environment` (or the Gymnasium `QubeEnv` around one):
 a row after each reset and after every step, with the columns of `COLUMNS`, the
-observation as the policy saw it (`obs_<key>_<i>`) and, on hardware, the board's
-raw readings (`raw_<name>`: motor current in A, encoder counts, tachometer in
-counts/s, missed samples; board signs).
+measured state (the pendulum's `theta`, `alpha`, `dtheta`, `dalpha`, or the names another
+device's domain gives, `capabilities.NamedState`), the observation as the policy saw it
+(`obs_<key>_<i>`) and, on hardware, the board's raw readings (`raw_<name>`: motor current
+in A, encoder counts, tachometer in counts/s, missed samples; board signs).
 
 Format: JSON Lines (UTF-8, one JSON value per line, standard JSON: no NaN).
 
@@ -47,18 +48,27 @@ from typing import Any
 import numpy as np
 
 from qube_suite import files
-from qube_suite.capabilities import HasBoard
+from qube_suite.capabilities import HasBoard, NamedState
 
 FORMAT = "qube_suite.recording"
 VERSION = 1
 
 COLUMNS = ("step", "time", "action", "voltage", "applied_voltage", "reward", "discount", "last",
-           "led_r", "led_g", "led_b", "theta", "alpha", "dtheta", "dalpha")
+           "led_r", "led_g", "led_b")
 """Columns of every row: step number; time since the episode started (s); the action as given
 (V, before clipping); the voltage commanded (V, clipped to the task's limit) and applied to the
 motor (V, after actuator effects; on hardware, as written to the board); reward and discount of
-the step (null in the reset's row); last (1 in the episode's final row); LED colour; the measured
-state [theta, alpha, dtheta, dalpha] (rad, rad/s)."""
+the step (null in the reset's row); last (1 in the episode's final row); LED colour. The measured
+state follows (`state_columns`)."""
+
+PENDULUM_STATE = ("theta", "alpha", "dtheta", "dalpha")
+"""The pendulum's measured state [theta, alpha, dtheta, dalpha] (rad, rad/s): the state columns of a
+domain that does not name its own (`capabilities.NamedState`)."""
+
+
+def state_columns(physics: Any) -> tuple[str, ...]:
+    """The names of the measured state's columns for `physics`."""
+    return physics.state_names if isinstance(physics, NamedState) else PENDULUM_STATE
 
 
 def _finite(value: float) -> float | None:
@@ -134,7 +144,8 @@ class Recorder:
         physics, task = environment.physics, environment.task
         observation = [(key, spec.shape[0]) for key, spec in task.observation_spec(physics).items()]
         self._raw = isinstance(physics, HasBoard)
-        columns = [*COLUMNS, *(f"obs_{key}_{i}" for key, size in observation for i in range(size))]
+        columns = [*COLUMNS, *state_columns(physics),
+                   *(f"obs_{key}_{i}" for key, size in observation for i in range(size))]
         if self._raw:
             columns += [f"raw_{name}" for name in physics.raw_readings()]
         drawn = environment.randomization_sample

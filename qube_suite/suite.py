@@ -85,7 +85,7 @@ def load(domain_name: str, task_name: str, task_kwargs: Mapping[str, Any] | None
             `realtime`, `max_voltage`, `reset_voltage_limit`, `reset_timeout`,
             `identifier`, `check_encoders`, `zero_encoders` and `parameters` (this
             Qube's, e.g. a calibration: its reset controllers are designed for them;
-            see `qube_suite.domains.qube_hardware.Physics`).
+            see `qube_suite.devices.qube.hardware.Physics`).
         randomization: domain randomization drawn at every reset: a preset name
             ("none", "mild", "moderate", "sim2real"), a config mapping, the path of
             a YAML file, or a `qube_suite.randomization.Randomization`; None: off.

@@ -35,7 +35,7 @@ def pytest_collection_modifyitems(config, items):
 @pytest.fixture
 def physics():
     """A nominal simulated Qube at 250 Hz."""
-    from qube_suite.domains import qube
+    from qube_suite.devices.qube import simulation as qube
 
     return qube.make_physics()
 

@@ -8,15 +8,17 @@ import pytest
 import scipy.linalg
 from reference_dynamics import FurutaPendulum
 
-from qube_suite import baselines, parameters, suite
+from qube_suite import baselines, suite
 from qube_suite.angles import wrap_angle
-from qube_suite.baselines import dampen, lqr
-from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.conventions import ObservationLayout
-from qube_suite.domains import qube
+from qube_suite.devices.qube import parameters
+from qube_suite.devices.qube import simulation as qube
+from qube_suite.devices.qube.controllers import dampen, lqr
+from qube_suite.devices.qube.controllers.model import RigidBodyModel
+from qube_suite.devices.qube.tasks import Dampen, Swingup
 from qube_suite.environment import Environment
 from qube_suite.evaluation import policy_for
-from qube_suite.tasks import SUITE, Dampen, Swingup
+from qube_suite.tasks import SUITE
 
 ROBUSTNESS = [{"pendulum_mass": 1.2 * parameters.NOMINAL["pendulum_mass"]},
               {"arm_damping": 100 * parameters.NOMINAL["arm_damping"]},
@@ -355,7 +357,7 @@ def test_follow_earns_its_targets_return(task, least):
 
 def test_every_controller_names_suite_tasks_and_clips_its_output():
     random = np.random.default_rng(0)
-    for name, cls in baselines.CONTROLLERS.items():
+    for name, cls in baselines.names().items():
         assert cls.name == name and cls.tasks and set(cls.tasks) <= set(SUITE)
         controller = baselines.make(name, voltage_limit=2.0)
         controller.reset()

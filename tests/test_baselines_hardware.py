@@ -9,11 +9,11 @@ import pytest
 import scipy.linalg
 
 from qube_suite import baselines, suite
-from qube_suite.baselines import lqr
-from qube_suite.baselines.linearization import linearize
-from qube_suite.baselines.model import RigidBodyModel
-from qube_suite.baselines.observer import StateObserver, kalman_gain
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
+from qube_suite.devices.qube.controllers import lqr
+from qube_suite.devices.qube.controllers.linearization import linearize
+from qube_suite.devices.qube.controllers.model import RigidBodyModel
+from qube_suite.devices.qube.controllers.observer import StateObserver, kalman_gain
 from qube_suite.evaluation import evaluate
 
 

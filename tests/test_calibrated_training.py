@@ -7,9 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from qube_suite import cli, parameters, training
+from qube_suite import cli, training
 from qube_suite.calibration.calibration_file import Calibration
 from qube_suite.calibration.calibration_file import load as load_calibration
+from qube_suite.devices.qube import parameters
 from qube_suite.policies import load_policy
 from qube_suite.randomization import load as load_randomization
 from qube_suite.randomization.presets import PRESETS
@@ -157,7 +158,7 @@ def test_a_calibrated_run_fine_tunes_the_adaptive_policy_and_exports_its_history
 
 
 def test_the_randomization_contains_a_calibrated_latency():
-    from qube_suite.domains import qube
+    from qube_suite.devices.qube import simulation as qube
     from qube_suite.randomization import Randomizer
 
     config = calibrated.randomization_for(parameters.REAL_QUBE_SERVO2)

@@ -7,11 +7,12 @@ import os
 import numpy as np
 import pytest
 
-from qube_suite import baselines, calibration, parameters, suite
-from qube_suite.baselines.lqr import lqr_gain
+from qube_suite import baselines, calibration, suite
 from qube_suite.calibration import experiment, measurements
 from qube_suite.calibration.identifiability import FITTED
 from qube_suite.cli import main
+from qube_suite.devices.qube import parameters
+from qube_suite.devices.qube.controllers.lqr import lqr_gain
 from qube_suite.hardware.plant import plant_parameters
 
 HIDDEN_PLANTS = [
@@ -185,7 +186,7 @@ def test_short_recordings_and_recordings_without_currents_are_refused(tmp_path):
 
 
 def test_an_experiment_that_does_not_finish_leaves_no_recording(tmp_path):
-    from qube_suite.domains.qube_hardware import ResetError
+    from qube_suite.devices.qube.hardware import ResetError
 
     with pytest.raises(ResetError):  # the settling before the experiment needs 0.5 s at rest
         experiment.run(tmp_path / "experiment.jsonl", "qube_hardware", {"reset_timeout": 0.1})

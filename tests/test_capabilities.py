@@ -3,8 +3,9 @@
 import pytest
 
 from qube_suite import capabilities, suite
-from qube_suite.domains import qube, qube_hardware
-from qube_suite.domains.qube_batch import QubeBatch
+from qube_suite.devices.qube import hardware as qube_hardware
+from qube_suite.devices.qube import simulation as qube
+from qube_suite.devices.qube.batch import QubeBatch
 from qube_suite.randomization import Randomizer, load
 
 ALL = {name: getattr(capabilities, name) for name in (

@@ -18,7 +18,7 @@ def test_list_shows_tasks_ids_presets_controllers_and_policies(capsys):
     assert "QubeSuite/SwingupFollowSparseHardware-v0" in out
     assert "none, mild, moderate, sim2real" in out
     assert ": ppo:balance, ppo:balance_follow, ppo:dampen" in out
-    for name, controller in baselines.CONTROLLERS.items():
+    for name, controller in baselines.names().items():
         assert f"  {name}" in out and ", ".join(controller.tasks) in out
 
 
@@ -137,7 +137,7 @@ def test_bench_quick_prints_one_table_with_ratios(capsys):
     rows = {line.split("  ")[0]: line for line in out.splitlines() if "  " in line}
     for name in ("qube_suite Gymnasium step (Swingup-v0)", "qube_suite dm_env step (swingup)",
                  "qube_suite vector env, N=16", "Gymnasium InvertedPendulum-v5 step",
-                 "dm_control cartpole swingup step", "raw MuJoCo: Python loop of mj_step on qube.xml",
+                 "dm_control cartpole swingup step", "raw MuJoCo: Python loop of mj_step on model.xml",
                  "raw mujoco.rollout, 2 threads, N=16", "reset: qube_suite Gymnasium (Swingup-v0)"):
         assert name in rows, name
         assert float(rows[name].split()[len(name.split())].replace(",", "")) > 0  # the best rate

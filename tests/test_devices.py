@@ -15,7 +15,7 @@ def test_the_qube_pendulum_is_found_by_discovery_with_its_two_domains():
     assert list(devices.domains()) == ["qube", "qube_hardware", "qube_disk", "qube_disk_hardware"]
     hardware = devices.domain("qube_hardware")
     assert hardware.hardware and hardware.device.name == "qube"
-    assert hardware.module().__name__ == "qube_suite.domains.qube_hardware"
+    assert hardware.module().__name__ == "qube_suite.devices.qube.hardware"
     assert set(suite.TASKS_BY_DOMAIN) == {"qube", "qube_hardware", "qube_disk", "qube_disk_hardware"}
     with pytest.raises(ValueError, match=r"unknown domain 'qube_aero'; valid domains: qube, qube_hardware, "):
         suite.load("qube_aero", "swingup")

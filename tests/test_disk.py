@@ -12,8 +12,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from qube_suite import devices, suite
-from qube_suite.devices.qube_disk import controllers, parameters, simulation, substitute
+from qube_suite import devices, recording, suite
+from qube_suite.calibration import experiment
+from qube_suite.devices.qube_disk import calibration, controllers, parameters, simulation, substitute
 from qube_suite.evaluation import evaluate
 from qube_suite.hardware import _hil_sim
 from qube_suite.hardware.quanser import QuanserWrapper
@@ -51,7 +52,7 @@ def test_the_model_file_carries_the_parameter_table():
 
 
 def test_the_motor_rows_are_the_qubes_own():
-    from qube_suite import parameters as shared
+    from qube_suite.devices.qube import parameters as shared
 
     for name in parameters.MOTOR_NAMES:
         assert parameters.PARAMETERS[name] is shared.PARAMETERS[name]
@@ -219,3 +220,50 @@ def test_the_learned_position_policy_follows_the_targets(domain):
     """PPO (250 k steps in simulation) keeps the disk near its targets on both domains."""
     result = evaluate(mlp.load(POLICY), domain=domain, task="position", episodes=2)
     assert result.mean_return > 1700.0, result.to_dict()
+
+
+@pytest.mark.parametrize("domain", ["qube_disk", "qube_disk_hardware"])
+def test_a_recording_of_the_disk_reads_back_with_its_own_state_columns(domain, tmp_path):
+    env = suite.load(domain, "speed", task_kwargs={"random": 0}, environment_kwargs={"time_limit": 0.2})
+    path = tmp_path / "disk.jsonl"
+    speeds = []
+    with recording.Recorder(path, env):
+        timestep = env.reset()
+        speeds.append(env.physics.qube_state()[1])
+        while not timestep.last():
+            timestep = env.step([2.0])
+            speeds.append(env.physics.qube_state()[1])
+    env.close()
+    episode = recording.load_recording(path).episodes[0]
+    assert "alpha" not in episode.data
+    np.testing.assert_array_equal(episode["disk_velocity"], speeds)
+    assert episode["disk_angle"][-1] > 0.0
+    if domain.endswith("_hardware"):
+        assert episode["raw_encoder_disk"][-1] != 0 and np.all(np.isfinite(episode["raw_current"]))
+
+
+@pytest.mark.hardware
+def test_calibration_recovers_a_changed_disk_inertia_on_the_substitute(tmp_path):
+    # The same calibration engine as the pendulum's, with the disk's unknowns, balance and encoder.
+    nominal = parameters.NOMINAL["disk_mass"]
+    found = {}
+    for mass in (nominal, 1.4 * nominal):
+        path = calibration.record_experiment(tmp_path / f"disk_{mass:.4f}.jsonl", seconds=25.0,
+                                             domain_kwargs={"parameters": {"disk_mass": mass}})
+        disk = calibration.calibrate_recording(path)
+        low, high = disk.intervals["disk_mass"]
+        assert low <= mass <= high
+        assert disk.parameters["disk_mass"] == pytest.approx(mass, rel=0.04)
+        inertia = parameters.disk_inertia(mass, parameters.NOMINAL["disk_radius"])
+        assert disk.identified["disk_inertia"] == pytest.approx(inertia, rel=0.04)
+        assert disk.parameters["motor_resistance"] == pytest.approx(8.4, rel=0.01)
+        assert disk.parameters["motor_back_emf"] == pytest.approx(0.042, rel=0.01)
+        assert disk.parameters["disk_friction"] == pytest.approx(1e-3, rel=0.05)  # the substitute's shaft
+        found[mass] = disk.parameters["disk_mass"]
+    assert found[1.4 * nominal] / found[nominal] == pytest.approx(1.4, rel=0.015)
+
+
+def test_a_pendulum_recording_is_no_disk_recording(tmp_path):
+    path = experiment.run(tmp_path / "pendulum.jsonl", "qube_hardware", seconds=20.0)
+    with pytest.raises(ValueError, match="no encoder column raw_encoder_disk"):
+        calibration.calibrate_recording(path)

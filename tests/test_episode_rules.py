@@ -7,11 +7,12 @@ import pytest
 
 import qube_suite  # noqa: F401  (registers the Gymnasium ids)
 from qube_suite import suite
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
+from qube_suite.devices.qube.tasks import Swingup
+from qube_suite.devices.qube.tasks.balance import Balance
 from qube_suite.environment import Environment
 from qube_suite.episode_rules import judge_step
-from qube_suite.tasks import SUITE, BatchSafetyError, QubeTask, Swingup, check_batch_safety, register
-from qube_suite.tasks.balance import Balance
+from qube_suite.tasks import SUITE, BatchSafetyError, QubeTask, check_batch_safety, register
 from qube_suite.tasks.base import voltage_from_action
 from qube_suite.tasks.batch_safety import ProbeQubes
 from qube_suite.wrappers import QubeVectorEnv, to_gymnasium

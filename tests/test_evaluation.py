@@ -8,7 +8,7 @@ import pytest
 
 from qube_suite import baselines, cli, evaluate, suite
 from qube_suite.angles import wrap_angle
-from qube_suite.tasks import Balance, Dampen, Rotor, Swingup
+from qube_suite.devices.qube.tasks import Balance, Dampen, Rotor, Swingup
 from qube_suite.tasks.batch_safety import ProbeQubes
 
 SETTLED = 500  # 2 s at 250 Hz

@@ -7,12 +7,11 @@ import pathlib
 import numpy as np
 import pytest
 
-import qube_suite
-from qube_suite import cli, randomization, suite
+from qube_suite import cli, policies, randomization, suite
 from qube_suite.policies import mlp
 from qube_suite.recording import load_recording
 
-SHIPPED_POLICY = pathlib.Path(qube_suite.__file__).parent / "policies" / "ppo_balance.npz"
+SHIPPED_POLICY = policies.shipped()["ppo:balance"]
 
 
 def policy_variant(tmp_path, name, meta_raw=None, arrays_changed=None, **meta_changes) -> pathlib.Path:

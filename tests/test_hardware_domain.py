@@ -10,8 +10,8 @@ from hil_helpers import fake_quanser_sdk
 import qube_suite  # noqa: F401  (registers the Gymnasium ids)
 from qube_suite import baselines, suite
 from qube_suite.angles import wrap_angle
-from qube_suite.baselines.model import RigidBodyModel
-from qube_suite.domains.qube_hardware import RESET_LED, ResetError
+from qube_suite.devices.qube.controllers.model import RigidBodyModel
+from qube_suite.devices.qube.hardware import RESET_LED, ResetError
 from qube_suite.hardware import conventions
 from qube_suite.wrappers import HARDWARE_GYMNASIUM_IDS
 

@@ -16,7 +16,7 @@ from wall_clock import busy_core_fixture, child_environment, wall_clock_board_fi
 
 import qube_suite  # noqa: F401  (registers the Gymnasium ids)
 from qube_suite import baselines, evaluation, suite
-from qube_suite.domains import qube_hardware
+from qube_suite.devices.qube import hardware as qube_hardware
 from qube_suite.hardware import BoardIOError, QubeServo2
 
 DRIVE = np.array([2.0])
@@ -357,7 +357,7 @@ def test_full_garbage_collections_wait_while_the_board_drives():
 # -- arm centring and the encoder check between episodes ----------------------------------------------
 
 def test_a_lost_pendulum_zero_is_found_between_episodes_with_the_motor_stopped():
-    from qube_suite.domains.qube_hardware import EncoderCheckError
+    from qube_suite.devices.qube.hardware import EncoderCheckError
 
     with load("swingup") as env:
         env.reset()
@@ -376,7 +376,7 @@ def test_the_encoder_check_can_be_turned_off():
 
 
 def test_hanging_starts_have_the_arm_centred():
-    from qube_suite.domains.qube_hardware import ARM_CENTRE_TOLERANCE
+    from qube_suite.devices.qube.hardware import ARM_CENTRE_TOLERANCE
 
     with load("rotor") as env:
         for _ in range(3):

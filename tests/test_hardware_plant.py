@@ -7,8 +7,8 @@ import pytest
 from hil_helpers import CLEAN_PLANT, Rig
 from reference_dynamics import FurutaPendulum
 
-from qube_suite import parameters
 from qube_suite.angles import wrap_angle
+from qube_suite.devices.qube import parameters
 from qube_suite.hardware import _hil_sim
 from qube_suite.hardware.plant import plant_parameters
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from qube_suite import baselines, suite
-from qube_suite.domains.qube_hardware import (
+from qube_suite.devices.qube.hardware import (
     ARM_CENTRE_TOLERANCE,
     FRESH_ESTIMATE_TIME,
     HOLD_TIME,
@@ -108,7 +108,7 @@ def test_a_balance_reset_swings_up_a_calm_pendulum_directly_without_the_check():
 
 
 def test_the_reset_controllers_are_designed_for_the_qubes_own_parameters(tmp_path):
-    from qube_suite.baselines.model import RigidBodyModel
+    from qube_suite.devices.qube.controllers.model import RigidBodyModel
 
     calibration = tmp_path / "calibration.yaml"
     calibration.write_text("parameters:\n  pendulum_mass: 0.03\n  arm_damping: 1.0e-5\n")

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from qube_suite import baselines, cli, suite
-from qube_suite.baselines.ilqr import Cost, IterativeLQR, reference_iteration
-from qube_suite.baselines.model import RigidBodyModel
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
+from qube_suite.devices.qube.controllers.ilqr import Cost, IterativeLQR, reference_iteration
+from qube_suite.devices.qube.controllers.model import RigidBodyModel
 from qube_suite.evaluation import evaluate
 
 H = 1 / 250
@@ -27,7 +27,7 @@ def states(count, seed=0):
 
 
 def test_kernel_step_is_the_simulators_step(controller):
-    """One RK4 step of the closed-form model over a control period is MuJoCo's step of qube.xml."""
+    """One RK4 step of the closed-form model over a control period is MuJoCo's step of model.xml."""
     physics = qube.make_physics(250.0)
     random = np.random.default_rng(1)
     for state in states(20):

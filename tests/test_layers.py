@@ -26,10 +26,11 @@ def test_the_contract_catches_a_domain_importing_a_controller(tmp_path):
     pytest.importorskip("importlinter")
     package = tmp_path / "qube_suite"
     subprocess.run(["cp", "-r", str(ROOT / "qube_suite"), str(package)], check=True)
-    (package / "domains" / "upward.py").write_text("from qube_suite import baselines\n", encoding="utf-8")
+    (package / "domains" / "upward.py").write_text("from qube_suite.devices.qube import controllers\n",
+                                                   encoding="utf-8")
     (tmp_path / "pyproject.toml").write_text((ROOT / "pyproject.toml").read_text(encoding="utf-8"),
                                              encoding="utf-8")
     result = subprocess.run([sys.executable, "-c", CHECK, str(tmp_path / "pyproject.toml")], cwd=tmp_path,
                             capture_output=True, text=True, env={"PYTHONPATH": str(tmp_path), "PATH": ""})
     assert result.returncode != 0
-    assert "qube_suite.domains.upward -> qube_suite.baselines" in result.stdout
+    assert "qube_suite.domains.upward -> qube_suite.devices.qube.controllers" in result.stdout

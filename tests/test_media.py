@@ -7,7 +7,7 @@ import pytest
 from conftest import requires_offscreen_gl
 
 from qube_suite import baselines, media, suite
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
 
 pytestmark = requires_offscreen_gl
 

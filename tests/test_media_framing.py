@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from conftest import requires_offscreen_gl
 
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
 from qube_suite.media import camera_names
 
 POSES = list(itertools.product(np.linspace(-math.pi / 2, math.pi / 2, 5),   # the arm's whole safe range

@@ -16,11 +16,12 @@ import jax.numpy as jnp  # noqa: E402
 import mujoco  # noqa: E402
 
 from qube_suite import suite  # noqa: E402
-from qube_suite.domains import qube, qube_batch  # noqa: E402
+from qube_suite.devices.qube import batch as qube_batch  # noqa: E402
+from qube_suite.devices.qube import simulation as qube  # noqa: E402
+from qube_suite.devices.qube import tasks as qube_tasks  # noqa: E402
 from qube_suite.mjx import brax_compat, environment, offered, training, worlds  # noqa: E402
 from qube_suite.randomization import config as randomization_config  # noqa: E402
 from qube_suite.randomization.sampling import sample  # noqa: E402
-from qube_suite.tasks import registry  # noqa: E402
 
 EDGE_STATES = np.array([
     [0.0, 0.0, 0.0, 0.0], [0.0, math.pi, 0.0, 0.0], [0.3, -0.2, 1.0, -2.0],
@@ -56,7 +57,7 @@ class FloatQube:
 @pytest.mark.parametrize("task", offered.TASKS)
 def test_every_offered_tasks_rules_agree_with_the_numpy_task(task):
     env = environment.QubeMjx(task)
-    numpy_task = registry.SUITE[task](observation="trig")
+    numpy_task = qube_tasks.SUITE[task](observation="trig")
     states = np.concatenate([EDGE_STATES, np.random.default_rng(0).uniform(
         [-1.7, -math.pi, -20, -40], [1.7, math.pi, 20, 40], (40, 4))])
     for state in states:
@@ -83,7 +84,7 @@ def test_an_effect_the_backend_does_not_apply_is_refused():
 
 @pytest.mark.parametrize("task", ["swingup", "balance", "dampen"])
 def test_start_states_are_drawn_from_the_tasks_own_distribution(task):
-    start = registry.SUITE[task]().start
+    start = qube_tasks.SUITE[task]().start
     keys = jax.random.split(jax.random.PRNGKey(3), 4000)
     drawn = np.asarray(jax.vmap(lambda key: environment.draw_start(start, key))(keys))
     random = np.random.RandomState(3)

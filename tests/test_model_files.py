@@ -1,4 +1,4 @@
-"""The model files: the Qube alone in qube.xml, the scene in scene.xml, keyframes the domains agree with."""
+"""The model files: the Qube alone in model.xml, the scene in scene.xml, keyframes the domains agree with."""
 
 import math
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from qube_suite import suite
-from qube_suite.domains import qube
-from qube_suite.domains.qube_batch import QubeBatch, physics_model
+from qube_suite.devices.qube import simulation as qube
+from qube_suite.devices.qube.batch import QubeBatch, physics_model
 
 DYNAMICS = ["body_mass", "body_inertia", "body_pos", "body_ipos", "dof_damping", "dof_armature",
             "dof_frictionloss", "jnt_stiffness", "actuator_gainprm", "actuator_biasprm", "qpos0"]

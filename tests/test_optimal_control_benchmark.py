@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from qube_suite import parameters
+from qube_suite.devices.qube import parameters
 from qube_suite.evaluation import evaluate
 
 SCRIPT = pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / "optimal_control.py"

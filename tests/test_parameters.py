@@ -6,8 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from qube_suite import parameters
-from qube_suite.domains import qube
+from qube_suite.devices.qube import parameters
+from qube_suite.devices.qube import simulation as qube
 
 MODEL_FIELDS = ("body_mass", "body_inertia", "body_pos", "body_ipos", "dof_damping", "dof_armature",
                 "dof_frictionloss", "jnt_stiffness", "actuator_gainprm", "actuator_biasprm",
@@ -15,7 +15,7 @@ MODEL_FIELDS = ("body_mass", "body_inertia", "body_pos", "body_ipos", "dof_dampi
 
 
 def test_xml_carries_the_nominal_table():
-    as_written = mujoco.MjModel.from_xml_path(str(qube.SCENE_PATH))  # includes qube.xml
+    as_written = mujoco.MjModel.from_xml_path(str(qube.SCENE_PATH))  # includes model.xml
     physics = qube.make_physics()
     physics.set_parameters({})
     for field in MODEL_FIELDS:

@@ -8,9 +8,9 @@ import pytest
 import scipy.linalg
 from reference_dynamics import FurutaPendulum
 
-from qube_suite import parameters
-from qube_suite.baselines.linearization import linearize
-from qube_suite.domains import qube
+from qube_suite.devices.qube import parameters
+from qube_suite.devices.qube import simulation as qube
+from qube_suite.devices.qube.controllers.linearization import linearize
 
 CONTROL_PERIOD = 0.004
 ENCODER_RESOLUTION = 2 * math.pi / parameters.ENCODER_COUNTS_PER_REVOLUTION

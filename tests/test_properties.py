@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 
 import qube_suite  # noqa: F401  (registers the Gymnasium ids)
 from qube_suite import randomization, suite
+from qube_suite.devices.qube.parameters import PARAMETERS
 from qube_suite.hardware import QubeServo2, SafetyStopError
-from qube_suite.parameters import PARAMETERS
 
 FEW = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from qube_suite import parameters, randomization
+from qube_suite import randomization
+from qube_suite.devices.qube import parameters
 from qube_suite.randomization import Distribution, load, sample, sample_parameters
 
 

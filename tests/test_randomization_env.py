@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 import qube_suite  # noqa: F401  (registers the Gymnasium ids)
-from qube_suite import baselines, parameters, randomization, suite
+from qube_suite import baselines, randomization, suite
+from qube_suite.devices.qube import parameters
 
 MASSES = {"parameters": {
     "pendulum_mass": {"distribution": "uniform", "low": 0.8, "high": 1.2},

@@ -10,7 +10,7 @@ import pytest
 from qube_suite import calibration
 from qube_suite.calibration import fit, prediction, recordings
 from qube_suite.cli import main
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
 
 REAL_QUBE = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "real_qube")
 HEADER = "time,voltage,arm_angle,pendulum_angle"
@@ -156,8 +156,8 @@ def test_the_suites_recordings_export_to_the_format(tmp_path):
 
 
 def test_a_calibration_file_gives_the_simulation_its_latency_dead_zone_and_offsets(tmp_path):
-    from qube_suite import parameters
     from qube_suite.calibration.calibration_file import Calibration
+    from qube_suite.devices.qube import parameters
 
     found = Calibration(parameters=parameters.resolve({"cable_stiffness": 2e-3}), intervals={}, metadata={},
                         offsets={"arm_encoder_offset": -0.3, "pendulum_encoder_offset": 0.01},
@@ -181,7 +181,8 @@ def test_a_calibration_file_gives_the_simulation_its_latency_dead_zone_and_offse
 
 
 def test_the_shipped_real_qube_is_a_calibration_the_suite_simulates():
-    from qube_suite import parameters, suite
+    from qube_suite import suite
+    from qube_suite.devices.qube import parameters
 
     shipped = calibration.load(parameters.REAL_QUBE_SERVO2)
     assert shipped.parameters["rotor_inertia"] > 5 * parameters.NOMINAL["rotor_inertia"]
@@ -194,8 +195,8 @@ def test_the_shipped_real_qube_is_a_calibration_the_suite_simulates():
 
 
 def test_effects_of_a_calibration_without_actuation_are_its_offsets():
-    from qube_suite import parameters
     from qube_suite.calibration.calibration_file import Calibration
+    from qube_suite.devices.qube import parameters
 
     old = Calibration(parameters=parameters.resolve(), intervals={}, metadata={}, latency_steps=1,
                       offsets={"arm_encoder_offset": 0.05, "pendulum_encoder_offset": -0.002})

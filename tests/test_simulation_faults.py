@@ -6,7 +6,7 @@ import pytest
 
 import qube_suite  # noqa: F401  (registers the Gymnasium ids)
 from qube_suite import suite
-from qube_suite.domains.qube import MAX_PLAUSIBLE_SPEED
+from qube_suite.devices.qube.simulation import MAX_PLAUSIBLE_SPEED
 
 UNSTABLE = {"arm_damping": 10.0}
 """An arm damping 2e6 times the nominal one: RK4 at 4 ms diverges within a step."""
@@ -109,7 +109,7 @@ def test_vector_env_flags_the_diverged_world_and_the_others_go_on(mode, randomiz
 
 def test_divergence_and_step_splitting_rules_give_one_answer_for_numbers_and_arrays():
     """One Qube and a batch share the rules: a number and an array entry get the same answer."""
-    from qube_suite.domains.qube import MAX_TIMESTEP, plausible, split_step
+    from qube_suite.devices.qube.simulation import MAX_TIMESTEP, plausible, split_step
 
     speeds = np.array([0.0, MAX_PLAUSIBLE_SPEED * 0.99, MAX_PLAUSIBLE_SPEED, np.inf, -np.inf, np.nan])
     together = plausible(speeds, -speeds)

@@ -126,7 +126,7 @@ def test_init_continues_from_a_previous_run(tmp_path):
 
 @needs_rl
 def test_exploring_starts_start_some_episodes_anywhere():
-    from qube_suite.baselines.model import RigidBodyModel
+    from qube_suite.devices.qube.controllers.model import RigidBodyModel
     from qube_suite.training.environments import ExploringStarts
 
     def hanging(random):

@@ -6,7 +6,7 @@ import pytest
 from test_vector_env import SEEDS, spin_or_random
 
 import qube_suite  # noqa: F401  (registers the Gymnasium ids)
-from qube_suite import parameters
+from qube_suite.devices.qube import parameters
 from qube_suite.wrappers import QubeVectorEnv
 
 EVERYTHING = {

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from qube_suite import parameters
+from qube_suite.devices.qube import parameters
 from qube_suite.randomization import load, sample_parameters
 
 HELD_OUT_RELATIVE = {"pendulum_mass": 0.30, "pendulum_length": 0.10, "motor_resistance": 0.25,

@@ -26,10 +26,10 @@ from typing import Any
 
 import numpy as np
 
-from qube_suite import parameters as params
 from qube_suite.calibration import experiment, fit, intervals, measurements, prediction, recordings
 from qube_suite.calibration.calibration_file import Calibration, load
 from qube_suite.calibration.identifiability import FITTED, OFFSETS
+from qube_suite.devices.qube import parameters as params
 from qube_suite.hardware.plant import BOARD_MOTORS
 
 HELD_OUT_EVERY = 5

@@ -21,7 +21,7 @@
     prediction: {horizon: 0.5, nominal_rms: 0.12, calibrated_rms: 0.015}   # held-out segments, rad
 
 The `parameters` mapping is what `suite.load("qube", ..., domain_kwargs={"parameters": path})`
-and the controllers (`parameters=path`) read (`qube_suite.parameters.values_of`).
+and the controllers (`parameters=path`) read (`qube_suite.devices.qube.parameters.values_of`).
 """
 
 from __future__ import annotations
@@ -33,9 +33,9 @@ from collections.abc import Mapping
 from typing import Any
 
 from qube_suite import files
-from qube_suite import parameters as params
 from qube_suite.calibration.fit import VOLTAGE_NAMES
 from qube_suite.calibration.identifiability import FITTED, FIXED
+from qube_suite.devices.qube import parameters as params
 
 FORMAT = "qube_suite.calibration"
 VERSION = 1
@@ -48,7 +48,7 @@ class Calibration:
     """A calibrated Qube (see the module docstring for the fields)."""
 
     parameters: dict[str, float]
-    """Every parameter of `qube_suite.parameters` by long name: estimates, and nominal values of
+    """Every parameter of `qube_suite.devices.qube.parameters` by long name: estimates, and nominal values of
     the fixed ones."""
     intervals: dict[str, tuple[float, float]]
     """95 % interval (low, high) of every estimated parameter."""

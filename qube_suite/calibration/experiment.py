@@ -35,8 +35,8 @@ from typing import Any
 import numpy as np
 
 from qube_suite import suite
-from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.capabilities import HasBoard
+from qube_suite.devices.qube.controllers.model import RigidBodyModel
 from qube_suite.recording import Recorder
 
 EXCITATION_VOLTAGE = 6.0
@@ -135,7 +135,7 @@ def run(path: str | os.PathLike, domain: str = "qube_hardware",
                              environment_kwargs={"time_limit": seconds}, domain_kwargs=domain_kwargs)
     metadata = {"experiment": EXPERIMENT, "domain": domain, "seed": seed, "seconds": seconds,
                 "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-                **_board_metadata(environment.physics)}
+                **board_metadata(environment.physics)}
     try:
         with Recorder(path, environment, metadata=metadata):
             timestep = environment.reset(seed=seed)
@@ -150,7 +150,7 @@ def run(path: str | os.PathLike, domain: str = "qube_hardware",
     return os.fspath(path)
 
 
-def _board_metadata(physics: Any) -> dict[str, Any]:
+def board_metadata(physics: Any) -> dict[str, Any]:
     """Board type, board name and identifier of a hardware domain's physics; the simulation's otherwise."""
     if not isinstance(physics, HasBoard):
         return {"board_type": "simulation", "board": "simulation", "identifier": None}

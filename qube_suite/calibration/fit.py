@@ -16,7 +16,7 @@ at both ends, and integrated by parts,
                torque = K s c theta'^2 + mp Lr l s theta' alpha' + mp g l s - Dp alpha' - Fp sign(alpha')
 
 with s, c of alpha + pendulum_encoder_offset and the coefficients of `baselines.model`
-(the rigid-body model of `assets/qube.xml`). The weak form needs the angles' first
+(the rigid-body model of `devices/qube/model.xml`). The weak form needs the angles' first
 derivative only, and only under an integral against a smooth weight: the smoothing
 filter's error on fast motion (its velocities are off by 0.05 rad/s RMS on the
 substitute) averages out instead of biasing the estimates, as accelerations from a
@@ -43,32 +43,20 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import mujoco.minimize
 import numpy as np
 from scipy.ndimage import minimum_filter1d
 
-from qube_suite import parameters
 from qube_suite.calibration.identifiability import FITTED, OFFSETS, Fitted
-from qube_suite.calibration.measurements import Measurements
+from qube_suite.calibration.measurements import PENDULUM_ENCODERS, Encoders, Measurements
+from qube_suite.devices.qube import parameters
 
 SLIDING_SPEED = 0.05
 """A joint counts as sliding where its speed stays above this (rad/s) across the smoothing window."""
 MAX_LATENCY = 3
 """Largest latency (samples) the fit considers."""
-
-NAMES = tuple(q.name for q in FITTED + OFFSETS)
-"""Names of the fit's unknowns, in order."""
-SCALES = np.array([q.scale for q in FITTED + OFFSETS])
-"""Scale of each unknown: the fit works on value / scale."""
-_POSITIVE = ("motor_resistance", "motor_back_emf", "motor_torque_constant", "pendulum_mass",
-             "pendulum_length")
-LOWER = np.array([0.3 if name in _POSITIVE else (-30.0 if name.endswith("offset") else 0.0)
-                  for name in NAMES])
-UPPER = np.array([3.0 if name in _POSITIVE else 30.0 for name in NAMES])
-"""Bounds of the scaled unknowns: physical parameters within 0.3 to 3 times nominal, friction-like
-ones within 0 and 30 times their scale, offsets within +-30 times theirs."""
-
 
 INTERVAL = 50
 """Samples per momentum-balance window (0.2 s at 250 Hz)."""
@@ -83,9 +71,10 @@ class Signals:
     and intervals the fit uses."""
 
     theta: np.ndarray
-    alpha: np.ndarray
+    alpha: np.ndarray | None
+    """The pendulum's angle (rad); None for a device without one."""
     dtheta: np.ndarray
-    dalpha: np.ndarray
+    dalpha: np.ndarray | None
     current: np.ndarray
     """Current read at each sample (A)."""
     current_after: np.ndarray
@@ -98,8 +87,8 @@ class Signals:
     """First samples of the momentum-balance intervals the fit may use."""
     arm_sliding: np.ndarray
     """For each interval: whether the arm slides throughout (its friction torque is then known)."""
-    pendulum_sliding: np.ndarray
-    """For each interval: whether the pendulum slides throughout."""
+    pendulum_sliding: np.ndarray | None
+    """For each interval: whether the pendulum slides throughout (None without a pendulum)."""
     block: np.ndarray
     """Block (`BLOCK_SECONDS` long) of each sample."""
     sample_time: float
@@ -109,7 +98,8 @@ def signals(measurements: Measurements, latency: int, samples: np.ndarray | None
     """The fit's inputs from `measurements` for `latency` (samples), using only the sample indices
     `samples` (None: all; the filter's edges and the first samples are never used)."""
     theta, dtheta = measurements.derivatives(measurements.theta)
-    alpha, dalpha = measurements.derivatives(measurements.alpha)
+    pendulum = measurements.alpha
+    alpha, dalpha = (None, None) if pendulum is None else measurements.derivatives(pendulum)
     current = measurements.current
     shift = 1 + latency
     voltage_before = np.concatenate([np.zeros(shift), measurements.voltage[:-shift]])
@@ -133,22 +123,88 @@ def signals(measurements: Measurements, latency: int, samples: np.ndarray | None
     return Signals(theta=theta, alpha=alpha, dtheta=dtheta, dalpha=dalpha, current=current,
                    current_after=np.append(current[1:], current[-1]), voltage_before=voltage_before,
                    rows=np.flatnonzero(usable), starts=starts, arm_sliding=sliding(dtheta),
-                   pendulum_sliding=sliding(dalpha), block=(measurements.time / BLOCK_SECONDS).astype(int),
+                   pendulum_sliding=None if dalpha is None else sliding(dalpha),
+                   block=(measurements.time / BLOCK_SECONDS).astype(int),
                    sample_time=measurements.sample_time)
 
 
-def physical(x: np.ndarray) -> dict[str, np.ndarray]:
-    """The unknowns by name from scaled `x` (shape (n,) or (n, k))."""
-    values = x * (SCALES if x.ndim == 1 else SCALES[:, None])
-    return dict(zip(NAMES, values, strict=True))
+Column = Callable[[np.ndarray], np.ndarray]
+"""Turns a per-sample signal into the shape of the unknowns' values: itself for one estimate (n,),
+a column for a batch of estimates (n, k)."""
 
 
-def equations(x: np.ndarray, s: Signals) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Residuals of the motor circuit (V, per sample), the arm's and the pendulum's momentum
-    balance (N m s, per interval in which the joint slides) at scaled unknowns `x` (n,) or a
-    batch (n, k): arrays (rows[, k])."""
-    p = physical(x)
+@dataclasses.dataclass(frozen=True)
+class Model:
+    """What a device gives the fit: its unknowns, its momentum balances and its encoders.
+
+    The motor's circuit is every Qube's and the fit writes it (`circuit`), so a device's unknowns
+    include `motor_resistance` and `motor_back_emf`. Bounds of the scaled unknowns: those in
+    `positive` within 0.3 to 3 times their scale, offsets (names ending in "offset") within +-30
+    times, the others (friction-like, whose truth may be 0) within 0 and 30 times.
+    """
+
+    unknowns: tuple[Fitted, ...]
+    """The fit's unknowns in order: parameters by their device table's long names, then offsets."""
+    positive: frozenset[str]
+    balances: Callable[[dict[str, np.ndarray], Signals, Column], tuple[np.ndarray, ...]]
+    """(unknowns by name, signals, column) -> each momentum balance's residuals (N m s), one per window
+    it uses."""
+    balance_starts: Callable[[Signals], tuple[np.ndarray, ...]]
+    """The first samples of the windows each balance uses, in the order of `balances`."""
+    start_weights: tuple[float, ...]
+    """1 / a rough spread of the circuit's residual (V) and of each balance's (N m s), to start with."""
+    encoders: Encoders = PENDULUM_ENCODERS
+    """Which raw encoder columns of a recording hold its angles."""
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The unknowns' names, in the fit's order."""
+        return tuple(q.name for q in self.unknowns)
+
+    @property
+    def scales(self) -> np.ndarray:
+        """Scale of each unknown: the fit works on value / scale."""
+        return np.array([q.scale for q in self.unknowns])
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower bounds of the scaled unknowns."""
+        return np.array([0.3 if name in self.positive else (-30.0 if name.endswith("offset") else 0.0)
+                         for name in self.names])
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper bounds of the scaled unknowns."""
+        return np.array([3.0 if name in self.positive else 30.0 for name in self.names])
+
+
+def physical(x: np.ndarray, model: Model | None = None) -> dict[str, np.ndarray]:
+    """The unknowns by name from scaled `x` (shape (n,) or (n, k)); `model`: the pendulum's if None."""
+    model = PENDULUM if model is None else model
+    scales = model.scales
+    values = x * (scales if x.ndim == 1 else scales[:, None])
+    return dict(zip(model.names, values, strict=True))
+
+
+def circuit(p: dict[str, np.ndarray], s: Signals, column: Column) -> np.ndarray:
+    """The motor circuit's residual (V, per sample the fit uses): V - Rm i - km theta'."""
+    rows = s.rows
+    return (column(s.voltage_before[rows]) - p["motor_resistance"] * column(s.current[rows])
+            - p["motor_back_emf"] * column(s.dtheta)[rows])
+
+
+def equations(x: np.ndarray, s: Signals, model: Model | None = None) -> tuple[np.ndarray, ...]:
+    """Residuals of the motor circuit (V, per sample) and of each momentum balance of `model` (the
+    pendulum's if None: the arm's and the pendulum's; N m s, per interval in which the joint slides) at
+    scaled unknowns `x` (n,) or a batch (n, k): arrays (rows[, k])."""
+    model = PENDULUM if model is None else model
+    p = physical(x, model)
     column = (lambda a: a[:, None]) if x.ndim > 1 else (lambda a: a)
+    return (circuit(p, s, column), *model.balances(p, s, column))
+
+
+def pendulum_balances(p: dict[str, np.ndarray], s: Signals, column: Column) -> tuple[np.ndarray, np.ndarray]:
+    """The arm's and the pendulum's momentum balances (see the module)."""
     th, dth, dal = column(s.theta), column(s.dtheta), column(s.dalpha)
     al = column(s.alpha) + p["pendulum_encoder_offset"]
     sin, cos = np.sin(al), np.cos(al)
@@ -163,9 +219,6 @@ def equations(x: np.ndarray, s: Signals) -> tuple[np.ndarray, np.ndarray, np.nda
     coupling = mp * lr * half
     m22 = mp * half * half + transverse
     m12 = -coupling * cos
-    rows = s.rows
-    circuit = (column(s.voltage_before[rows]) - p["motor_resistance"] * column(s.current[rows])
-               - p["motor_back_emf"] * dth[rows])
     arm_momentum = (base + swing * sin * sin) * dth + m12 * dal
     pendulum_momentum = m12 * dth + m22 * dal
     motor_torque = p["motor_torque_constant"] * column(s.current_after)
@@ -174,13 +227,28 @@ def equations(x: np.ndarray, s: Signals) -> tuple[np.ndarray, np.ndarray, np.nda
     pendulum_torque = (swing * sin * cos * dth * dth + coupling * sin * dth * dal
                        + mp * parameters.NOMINAL["gravity"] * half * sin
                        - p["pendulum_damping"] * dal - p["pendulum_friction"] * np.sign(dal))
-    arm = _balance(arm_momentum, arm_torque, motor_torque, s.starts[s.arm_sliding],
-                   s.sample_time)
-    pendulum = _balance(pendulum_momentum, pendulum_torque, 0.0, s.starts[s.pendulum_sliding], s.sample_time)
-    return circuit, arm, pendulum
+    arm = balance(arm_momentum, arm_torque, motor_torque, s.starts[s.arm_sliding], s.sample_time)
+    pendulum = balance(pendulum_momentum, pendulum_torque, 0.0, s.starts[s.pendulum_sliding], s.sample_time)
+    return arm, pendulum
 
 
-def _balance(momentum: np.ndarray, state_torque: np.ndarray, input_torque: np.ndarray | float,
+PENDULUM = Model(
+    unknowns=FITTED + OFFSETS,
+    positive=frozenset({"motor_resistance", "motor_back_emf", "motor_torque_constant", "pendulum_mass",
+                        "pendulum_length"}),
+    balances=pendulum_balances,
+    balance_starts=lambda s: (s.starts[s.arm_sliding], s.starts[s.pendulum_sliding]),
+    start_weights=(10.0, 1e4, 1e5),  # 1 / (0.1 V, 0.1 mN m s, 0.01 mN m s)
+)
+"""The Qube pendulum's model: the identified parameters and offsets of `identifiability`, the arm's
+and the pendulum's momentum balances."""
+NAMES = PENDULUM.names
+"""Names of the pendulum's unknowns, in order."""
+SCALES = PENDULUM.scales
+LOWER, UPPER = PENDULUM.lower, PENDULUM.upper
+
+
+def balance(momentum: np.ndarray, state_torque: np.ndarray, input_torque: np.ndarray | float,
              starts: np.ndarray, h: float) -> np.ndarray:
     """The momentum balance dp/dt = torque over each window [start, start + INTERVAL], weighted
     by w(t) = sin^2(pi t / T) and integrated by parts (w is 0 at both ends):
@@ -205,59 +273,76 @@ class FitResult:
 
     x: np.ndarray
     latency: int
-    weights: tuple[float, float, float]
-    """1 / spread of the circuit (V), arm (N m) and pendulum (N m) residuals at the estimate."""
+    weights: tuple[float, ...]
+    """1 / spread of the circuit (V) and of each balance's (N m s; the pendulum: the arm's, the
+    pendulum's) residuals at the estimate."""
     signals: Signals
+    model: Model = dataclasses.field(default_factory=lambda: PENDULUM)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The unknowns' names, in order (the model's)."""
+        return self.model.names
+
+    @property
+    def scales(self) -> np.ndarray:
+        """The unknowns' scales (the model's)."""
+        return self.model.scales
 
     @property
     def values(self) -> dict[str, float]:
         """The estimates by name, in their units."""
-        return {name: float(value) for name, value in physical(self.x).items()}
+        return {name: float(value) for name, value in physical(self.x, self.model).items()}
 
     def residual(self, x: np.ndarray) -> np.ndarray:
         """Weighted residual vector at scaled `x` (n,) or (n, k)."""
-        return weighted_residual(x, self.signals, self.weights)
+        return weighted_residual(x, self.signals, self.weights, self.model)
 
     def jacobian(self) -> np.ndarray:
         """Jacobian of the weighted residual with respect to the scaled unknowns at the estimate."""
         r = self.residual(self.x)
         jacobian, _ = mujoco.minimize.jacobian_fd(
             residual=self.residual, x=self.x[:, None], r=r[:, None], eps=1e-6, n_res=0,
-            bounds=[LOWER[:, None], UPPER[:, None]])
+            bounds=[self.model.lower[:, None], self.model.upper[:, None]])
         return np.asarray(jacobian)
 
     def blocks(self) -> np.ndarray:
         """The block index of each residual, in the residual's order."""
         s = self.signals
-        return np.concatenate([s.block[s.rows], s.block[s.starts[s.arm_sliding]],
-                               s.block[s.starts[s.pendulum_sliding]]])
+        balances = self.model.balance_starts(s)
+        return np.concatenate([s.block[s.rows], *(s.block[starts] for starts in balances)])
 
 
-def weighted_residual(x: np.ndarray, s: Signals, weights: tuple[float, float, float]) -> np.ndarray:
-    """The three equations' residuals, each times its weight, stacked."""
-    parts = equations(x, s)
+def weighted_residual(x: np.ndarray, s: Signals, weights: tuple[float, ...],
+                      model: Model | None = None) -> np.ndarray:
+    """The equations' residuals, each times its weight, stacked."""
+    parts = equations(x, s, model)
     return np.concatenate([w * part for w, part in zip(weights, parts, strict=True)], axis=0)
 
 
 def fit(measurements: Measurements, samples: np.ndarray | None = None, latency: int | None = None,
-        x0: np.ndarray | None = None) -> FitResult:
-    """Fit the unknowns to `measurements` on sample indices `samples` (None: all).
+        x0: np.ndarray | None = None, model: Model | None = None) -> FitResult:
+    """Fit `model`'s unknowns (the pendulum's if None) to `measurements` on sample indices `samples`
+    (None: all).
 
     `latency`: the samples between a voltage's recording and its action (None: the best of
-    0..MAX_LATENCY). `x0`: start (scaled; None: nominal, friction-like ones at their scale).
+    0..MAX_LATENCY). `x0`: start (scaled; None: nominal, offsets at 0, friction-like ones at their scale).
     """
+    model = PENDULUM if model is None else model
     if latency is None:
         latency = best_latency(measurements, samples)
     s = signals(measurements, latency, samples)
-    x = np.ones(len(NAMES)) if x0 is None else np.asarray(x0, dtype=float)
+    names = model.names
+    x = np.ones(len(names)) if x0 is None else np.asarray(x0, dtype=float)
     if x0 is None:
-        x[[NAMES.index(q.name) for q in OFFSETS]] = 0.0
-    weights = (10.0, 1e4, 1e5)  # 1 / (0.1 V, 0.1 mN m s, 0.01 mN m s): rough spreads to start with
+        x[[i for i, name in enumerate(names) if name.endswith("offset")]] = 0.0
+    weights = model.start_weights
+    bounds = [model.lower, model.upper]
     for _ in range(2):  # then reweight by the spreads found
-        x, _ = mujoco.minimize.least_squares(x, lambda z, w=weights: weighted_residual(z, s, w),
-                                             bounds=[LOWER, UPPER], verbose=0, max_iter=100)
-        weights = tuple(1.0 / max(float(np.sqrt(np.mean(part**2))), 1e-12) for part in equations(x, s))
-    return FitResult(x=x, latency=latency, weights=weights, signals=s)
+        x, _ = mujoco.minimize.least_squares(x, lambda z, w=weights: weighted_residual(z, s, w, model),
+                                             bounds=bounds, verbose=0, max_iter=100)
+        weights = tuple(1.0 / max(float(np.sqrt(np.mean(part**2))), 1e-12) for part in equations(x, s, model))
+    return FitResult(x=x, latency=latency, weights=weights, signals=s, model=model)
 
 
 def best_latency(measurements: Measurements, samples: np.ndarray | None = None) -> int:
@@ -356,8 +441,8 @@ def voltage_equations(x: np.ndarray, s: Signals, voltage: np.ndarray) -> tuple[n
     pendulum_torque = (swing * sin * cos * dth * dth + coupling * sin * dth * dal
                        + mp * parameters.NOMINAL["gravity"] * half * sin
                        - p["pendulum_damping"] * dal - p["pendulum_friction"] * np.sign(dal))
-    arm = _balance(arm_momentum, arm_torque, motor_torque, s.starts[s.arm_sliding], s.sample_time)
-    pendulum = _balance(pendulum_momentum, pendulum_torque, 0.0, s.starts[s.pendulum_sliding], s.sample_time)
+    arm = balance(arm_momentum, arm_torque, motor_torque, s.starts[s.arm_sliding], s.sample_time)
+    pendulum = balance(pendulum_momentum, pendulum_torque, 0.0, s.starts[s.pendulum_sliding], s.sample_time)
     return arm, pendulum
 
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 import dataclasses
 import types
 
-from qube_suite import parameters
+from qube_suite.devices.qube import parameters
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,7 +60,7 @@ FITTED: tuple[Fitted, ...] = (
     Fitted("pendulum_damping", 1.0e-6, "N m s/rad", 1.0e-6),
     Fitted("pendulum_friction", 1.0e-4, "N m", 1.5e-5),
 )
-"""The identified parameters (long names of `qube_suite.parameters`), in the fit's order."""
+"""The identified parameters (long names of `qube_suite.devices.qube.parameters`), in the fit's order."""
 
 OFFSETS: tuple[Fitted, ...] = (
     Fitted("arm_torque_offset", 1.0e-4, "N m", 1.0e-5),

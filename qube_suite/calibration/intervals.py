@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from qube_suite import parameters
 from qube_suite.calibration.fit import NAMES, SCALES, VOLTAGE_ONLY, FitResult
-from qube_suite.calibration.identifiability import FITTED, FIXED, OFFSETS, TORQUE_SCALED
+from qube_suite.calibration.identifiability import FITTED, FIXED, OFFSETS, TORQUE_SCALED, Fitted
+from qube_suite.devices.qube import parameters
 
 Z95 = 1.959963984540054
 """Two-sided 95 % quantile of the normal distribution."""
@@ -118,14 +118,23 @@ def intervals(result: FitResult) -> dict[str, tuple[float, float]]:
 
 def voltage_only_intervals(result) -> dict[str, tuple[float, float]]:
     """95 % interval (low, high) of every unknown of a voltage-only fit (`fit.VoltageFitResult`), in
-    its unit: 1.96 block-sandwich standard deviations times `INFLATION`, never narrower than the
-    unknown's tolerance. No bias bound: there is no known plant to measure one against; the benchmark
-    (`benchmarks/real_qube.py`) compares these widths with the spread of per-recording calibrations."""
+    its unit (`statistical_intervals`). No bias bound: there is no known plant to measure one against;
+    the benchmark (`benchmarks/real_qube.py`) compares these widths with the spread of per-recording
+    calibrations."""
+    return statistical_intervals(result, VOLTAGE_ONLY)
+
+
+def statistical_intervals(result, quantities: tuple[Fitted, ...]) -> dict[str, tuple[float, float]]:
+    """95 % interval (low, high) of every unknown of `result` (a fit result with `names`, `scales`,
+    `values`), in its unit: 1.96 block-sandwich standard deviations times `INFLATION`, never narrower
+    than the unknown's tolerance (its `quantities` entry); parameters never below 0."""
     sigma = np.sqrt(np.maximum(np.diag(block_covariance(result)), 0.0)) * result.scales * INFLATION
-    quantities = {q.name: q for q in VOLTAGE_ONLY}
+    by_name = {q.name: q for q in quantities}
     found = {}
     for name, value in result.values.items():
-        half = max(Z95 * float(sigma[result.names.index(name)]), quantities[name].absolute_tolerance)
+        quantity = by_name[name]
+        half = max(Z95 * float(sigma[result.names.index(name)]), quantity.absolute_tolerance,
+                   quantity.relative_tolerance * abs(value))
         low = max(value - half, 0.0) if not name.endswith("offset") else value - half
         found[name] = (low, value + half)
     return found

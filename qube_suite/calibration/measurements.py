@@ -15,6 +15,7 @@ unknown board type, with the arm at its limit, or with the motor current saturat
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from typing import Any
 
@@ -42,15 +43,31 @@ BOARD_TYPES = tuple(BOARD_MOTORS)
 
 
 @dataclasses.dataclass(frozen=True)
+class Encoders:
+    """Where a device's angles are in a recording: the raw encoder column of the motor's shaft (read
+    with the arm's sign), of the pendulum (None: the device has none), and the shaft's largest
+    angle in a usable recording (rad; None: it turns freely)."""
+
+    shaft: str = "raw_encoder_arm"
+    pendulum: str | None = "raw_encoder_pendulum"
+    shaft_limit: float | None = ARM_LIMIT
+
+
+PENDULUM_ENCODERS = Encoders()
+"""The Qube pendulum's: the arm on encoder 0, the pendulum on encoder 1, the arm within 85 degrees."""
+
+
+@dataclasses.dataclass(frozen=True)
 class Measurements:
     """The signals of one recorded experiment, one row per sample (package signs, SI units)."""
 
     time: np.ndarray
     """Board time (s)."""
     theta: np.ndarray
-    """Arm angle from encoder 0 (rad)."""
-    alpha: np.ndarray
-    """Pendulum angle from encoder 1, unwrapped, pi = hanging at the encoder's zero (rad)."""
+    """Arm angle (the motor shaft's) from encoder 0 (rad)."""
+    alpha: np.ndarray | None
+    """Pendulum angle from encoder 1, unwrapped, pi = hanging at the encoder's zero (rad); None for a
+    device without a pendulum."""
     voltage: np.ndarray
     """Voltage written at each sample (V); it acts until the next sample."""
     current: np.ndarray | None
@@ -77,11 +94,12 @@ class Measurements:
         return savgol_filter(signal, window, order), savgol_filter(signal, window, order, deriv=1, delta=h)
 
 
-def load(path: str | os.PathLike, board_type: str | None = None) -> Measurements:
+def load(path: str | os.PathLike, board_type: str | None = None,
+         encoders: Encoders = PENDULUM_ENCODERS) -> Measurements:
     """The measurements of the experiment recorded at `path` (its first episode).
 
     `board_type`: the board type (or board, e.g. "simulated") the recording must come from (None:
-    any supported one).
+    any supported one). `encoders`: the device's encoder columns (the pendulum's by default).
     Raises ValueError naming the problem for a recording that cannot be calibrated from.
     """
     path = os.fspath(path)
@@ -101,15 +119,23 @@ def load(path: str | os.PathLike, board_type: str | None = None) -> Measurements
     if "raw_current" not in episode.data or not np.all(np.isfinite(episode["raw_current"])):
         raise ValueError(f"{path} has no motor currents (column raw_current): record the experiment on "
                          "a hardware domain, whose recordings carry the board's raw readings")
+    missing = [column for column in (encoders.shaft, encoders.pendulum)
+               if column is not None and column not in episode.data]
+    if missing:
+        raise ValueError(f"{path} has no encoder column {', '.join(missing)}: it is a recording of another "
+                         "device than the one calibrated")
     sample_time = 1.0 / float(episode.header["control_frequency"])
     time = episode["time"]
     if time[-1] - time[0] < MIN_SECONDS:
         raise ValueError(f"{path} is too short: {time[-1] - time[0]:.1f} s recorded, calibration needs at "
                          f"least {MIN_SECONDS:g} s")
-    theta = conventions.ARM_SIGN * conventions.RADIANS_PER_COUNT * episode["raw_encoder_arm"]
-    counts = episode["raw_encoder_pendulum"]
-    alpha = np.pi + conventions.PENDULUM_SIGN * conventions.RADIANS_PER_COUNT * counts
-    if episode.end.get("terminated") or np.max(np.abs(theta)) > ARM_LIMIT:
+    theta = conventions.ARM_SIGN * conventions.RADIANS_PER_COUNT * episode[encoders.shaft]
+    alpha = None
+    if encoders.pendulum is not None:
+        counts = episode[encoders.pendulum]
+        alpha = np.pi + conventions.PENDULUM_SIGN * conventions.RADIANS_PER_COUNT * counts
+    limit = math.inf if encoders.shaft_limit is None else encoders.shaft_limit
+    if episode.end.get("terminated") or np.max(np.abs(theta)) > limit:
         raise ValueError(f"{path}: the arm reached its limit ({np.degrees(np.max(np.abs(theta))):.0f} "
                          "degrees); the experiment must stay well inside +-90 degrees")
     current = conventions.ARM_SIGN * episode["raw_current"]

@@ -1,6 +1,6 @@
 """How well a model predicts a recording: MuJoCo rollouts from recorded states, 0.5 s ahead.
 
-From a start sample, the simulated Qube (`domains.qube`, the model users train on,
+From a start sample, the simulated Qube (`devices.qube.simulation`, the model users train on,
 with the parameters under test) is put in the state estimated there from the
 recording up to the start, and driven by the recorded voltages, shifted by the
 latency, for `HORIZON` seconds; its angles are compared with the encoders'.
@@ -18,7 +18,7 @@ import mujoco.rollout
 import numpy as np
 
 from qube_suite.calibration.measurements import Measurements
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
 
 HORIZON = 0.5
 """How far ahead the rollouts predict (s)."""
@@ -66,7 +66,7 @@ def predict(measurements: Measurements, parameters: Mapping[str, float], samples
     angle after its start. `latency`: samples between a recorded voltage and its action (a fraction
     mixes neighbouring samples, `fit.delayed_voltage`); `offsets`: the encoders' offsets (rad), added
     to the recorded angles; `horizon`: how far ahead (s); `voltage_deadzone` (V) and
-    `cable_rest_angle` (rad): the effects the simulation adds (`domains.qube.CalibratedActuation`
+    `cable_rest_angle` (rad): the effects the simulation adds (`devices.qube.simulation.CalibratedActuation`
     and the cable's rest angle). `smoothed_start`: start instead from the zero-phase filter's angles
     and speeds at the start itself (which see half its window, 5 samples, past the start): the
     metric of `../shared/real_qube/README.md`, independent of the model.

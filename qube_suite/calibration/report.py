@@ -17,11 +17,11 @@ import os
 import numpy as np
 
 from qube_suite import extras
-from qube_suite import parameters as params
 from qube_suite.calibration import measurements, prediction
 from qube_suite.calibration.calibration_file import Calibration
 from qube_suite.calibration.experiment import Excitation
 from qube_suite.calibration.identifiability import FIXED
+from qube_suite.devices.qube import parameters as params
 
 
 def write(calibration: Calibration, path: str | os.PathLike) -> tuple[str, str]:

@@ -36,11 +36,11 @@ class Device:
             **domain_kwargs)` and the tuple `DOMAIN_KWARGS` of the keys `domain_kwargs` may hold.
         hardware: module of the hardware domain, alike.
         tasks: module holding the device's tasks as `SUITE` (a `qube_suite.tasks.registry.TaskSuite`).
+        controllers: module of its controllers: `CONTROLLERS` (name -> class), `make(name, **kwargs)`
+            and `for_environment(name, environment)`.
         gymnasium_prefix: its tasks' Gymnasium ids are `QubeSuite/<prefix><Task>[Hardware]-v0`.
         feature_map: what its learned policies see of an observation (a name in
             `qube_suite.policies.features.FEATURE_MAPS`).
-        controllers: module of its controllers: `CONTROLLERS` (name -> class) and
-            `for_environment(name, environment)`.
         batch: module of its batch simulation behind `gymnasium.make_vec`'s native vector env, or
             None: `make_vec` then steps single environments (Gymnasium's own `SyncVectorEnv`).
     """
@@ -50,9 +50,9 @@ class Device:
     simulation: str
     hardware: str
     tasks: str
+    controllers: str
     gymnasium_prefix: str = ""
     feature_map: str = "trig"
-    controllers: str = "qube_suite.baselines"
     batch: str | None = None
 
     @property

@@ -4,7 +4,7 @@ Tasks are written against `QubePhysics` only, so the same task runs on the MuJoC
 domain (`qube`) and on the hardware domain (`qube_hardware`). Angles are in
 radians, wrapped to (-pi, pi]; alpha = 0 is the pendulum upright, +-pi hanging.
 
-A batch of simulated Qubes (`qube_suite.domains.qube_batch.QubeBatch`, behind the
+A batch of simulated Qubes (`qube_suite.devices.qube.batch.QubeBatch`, behind the
 vector environment) has the same accessors returning one value per world as
 arrays, and `reset_world(world, state)` in place of `reset_to`; task formulas are
 written to accept either.
@@ -25,7 +25,7 @@ class QubePhysics(Protocol):
     """Control steps from an observation to the first sample at which the voltage answering
     it acts: 0 in simulation (a step applies its voltage at once), 1 on hardware (a step
     reads the next sample, then writes). Controllers predict the state over it
-    (`qube_suite.baselines.for_environment` passes it to them)."""
+    (`qube_suite.devices.qube.controllers.for_environment` passes it to them)."""
 
     physics_error: str | None
     """Why the last `step` was undone because the simulation diverged, else None (always None on
@@ -81,7 +81,7 @@ class QubePhysics(Protocol):
         """An action was refused: hardware writes 0 V at once (the next valid step drives again)."""
 
     def drawable(self):
-        """A MuJoCo physics (`domains.qube.Physics`) showing the Qube's state and LED, for rendering."""
+        """A MuJoCo physics (`devices.qube.simulation.Physics`) showing the state and LED, to render."""
 
     def close(self) -> None:
         """Release the Qube: on hardware, stop the motor and close the board."""

@@ -94,7 +94,7 @@ from libc.stdlib cimport free, malloc
 from qube_suite.angles import wrap_angle
 from qube_suite.hardware import conventions
 from qube_suite.hardware.plant import plant_parameters
-from qube_suite.parameters import PENDULUM_ROD_RADIUS, arm_inertia, pendulum_inertia
+from qube_suite.devices.qube.parameters import PENDULUM_ROD_RADIUS, arm_inertia, pendulum_inertia
 
 MIN_INTEGRATION_RATE = 10000.0
 """Lowest plant integration rate (Hz): the RK4 substep is at most 0.1 ms."""

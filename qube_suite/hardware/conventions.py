@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 
-from qube_suite.parameters import ENCODER_COUNTS_PER_REVOLUTION
+from qube_suite.devices.qube.parameters import ENCODER_COUNTS_PER_REVOLUTION
 
 RADIANS_PER_COUNT = 2.0 * math.pi / ENCODER_COUNTS_PER_REVOLUTION
 """Both encoders: 2048 counts per revolution (512 lines in quadrature)."""

@@ -2,7 +2,7 @@
 
 The substitute board (`_hil_sim.HIL`) integrates a Qube that differs from the
 nominal model the way a real one does. Its parameters are the nominal table of
-`qube_suite.parameters` (same long names), with the accuracy options that are
+`qube_suite.devices.qube.parameters` (same long names), with the accuracy options that are
 zero in the nominal model switched on, plus the amplifier's limits, which the
 nominal model does not have. `plant_parameters(board_type, overrides)` gives the
 full set; `HIL(plant={...})` and `QubeServo2(plant={...})` take overrides by
@@ -63,7 +63,7 @@ import math
 import types
 from collections.abc import Mapping
 
-from qube_suite import parameters
+from qube_suite.devices.qube import parameters
 
 
 @dataclasses.dataclass(frozen=True)

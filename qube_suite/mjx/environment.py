@@ -20,11 +20,12 @@ from brax.envs.base import Env, State
 from mujoco import mjx
 
 from qube_suite.angles import wrap_angle
-from qube_suite.domains import qube, qube_batch
+from qube_suite.devices.qube import batch as qube_batch
+from qube_suite.devices.qube import simulation as qube
+from qube_suite.devices.qube import tasks as qube_tasks
 from qube_suite.mjx import offered
 from qube_suite.mjx import worlds as world_draws
 from qube_suite.randomization import config as randomization_config
-from qube_suite.tasks import registry
 from qube_suite.tasks.starts import ClippedNormalStart, UniformStart
 from qube_suite.velocity_filter import filtered_velocity
 
@@ -71,7 +72,7 @@ class QubeMjx(Env):
         qube.check_control_frequency(control_frequency)
         kwargs = {"observation": "trig"} if voltage_limit is None else {
             "observation": "trig", "voltage_limit": voltage_limit}
-        self.task = registry.SUITE[task](**kwargs)
+        self.task = qube_tasks.SUITE[task](**kwargs)
         self.task_name = task
         self.config = randomization_config.load(randomization)
         self.control_frequency = float(control_frequency)

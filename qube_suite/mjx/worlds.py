@@ -25,7 +25,8 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
-from qube_suite.domains import qube, qube_batch
+from qube_suite.devices.qube import batch as qube_batch
+from qube_suite.devices.qube import simulation as qube
 from qube_suite.randomization.config import Randomization
 from qube_suite.randomization.sampling import sample
 from qube_suite.velocity_filter import VelocityFilter

@@ -5,9 +5,9 @@
     voltage = policy(observation)                    # any observation of the policy's task
     shipped()                                        # {"ppo:balance": path, ...}
 
-Shipped policies are `<algo>_<task>.npz` files beside this module, trained with
-`qube-suite train` (see docs/reinforcement-learning.md); the file
-format is described in `qube_suite.policies.mlp`.
+Shipped policies are the pendulum's `<algo>_<task>.npz` files (`qube_suite/devices/qube/policies/`),
+trained with `qube-suite train` (see docs/reinforcement-learning.md); the file format is described in
+`qube_suite.policies.mlp`.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ import pathlib
 
 from qube_suite.policies.mlp import MLPPolicy, load, save
 
-DIRECTORY = pathlib.Path(__file__).resolve().parent
-"""Where the shipped policy files are."""
+DIRECTORY = pathlib.Path(__file__).resolve().parent.parent / "devices" / "qube" / "policies"
+"""Where the shipped policy files are: the pendulum's folder."""
 
 
 def shipped() -> dict[str, pathlib.Path]:

@@ -1,6 +1,6 @@
 """Randomization configs: plain data, a YAML file, a preset name or a `Randomization`, validated on load.
 
-    parameters:                   # physical parameters by long name (qube_suite.parameters)
+    parameters:                   # physical parameters by long name (qube_suite.devices.qube.parameters)
       pendulum_mass: {distribution: uniform, low: 0.9, high: 1.1}     # x nominal (relative: the default)
       arm_damping: {distribution: loguniform, low: 0.5, high: 2.0}
       motor_resistance: {distribution: normal, mean: 1.0, std: 0.05, clip: [0.8, 1.2]}
@@ -28,7 +28,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from qube_suite import files
-from qube_suite import parameters as params
+from qube_suite.devices.qube import parameters as params
 from qube_suite.randomization.base import Field
 from qube_suite.randomization.catalog import EFFECTS
 from qube_suite.randomization.distributions import Distribution, finite_number, fixed, is_list

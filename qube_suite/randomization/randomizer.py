@@ -28,7 +28,7 @@ class Randomizer:
     capabilities in CAPABILITIES for the effects it is asked to apply; a missing one is
     a ValueError here, before any episode. Hooks the config does not use are left
     alone, so a domain without randomization keeps its plain step path. A `Batch`
-    (`qube_suite.domains.qube_batch.QubeBatch`) takes effects on arrays with one row
+    (`qube_suite.devices.qube.batch.QubeBatch`) takes effects on arrays with one row
     per world; a one-Qube domain is a batch of one (`OneQube`) whose effects hold
     numbers and run on its floats.
 

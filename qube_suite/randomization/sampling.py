@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from qube_suite.parameters import NOMINAL
+from qube_suite.devices.qube.parameters import NOMINAL
 from qube_suite.randomization.config import Randomization
 from qube_suite.randomization.distributions import Distribution
 

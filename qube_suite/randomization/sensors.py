@@ -10,7 +10,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from qube_suite.angles import TAU, wrap_angle
-from qube_suite.parameters import ENCODER_COUNTS_PER_REVOLUTION
+from qube_suite.devices.qube.parameters import ENCODER_COUNTS_PER_REVOLUTION
 from qube_suite.randomization.base import (
     Effect,
     Field,

@@ -1,13 +1,8 @@
-"""The Qube tasks, registered in `SUITE` by name with tags."""
+"""What every device's tasks share: the task base, the registry, the batch-safety rule, the
+follow targets' schedules. The pendulum's tasks are in `qube_suite.devices.qube.tasks`."""
 
-from qube_suite.tasks import balance, dampen, rotor, swingup  # noqa: F401  (registers the tasks)
-from qube_suite.tasks.balance import Balance, BalanceFollow
 from qube_suite.tasks.base import QubeTask
 from qube_suite.tasks.batch_safety import BatchSafetyError, check_batch_safety
-from qube_suite.tasks.dampen import Dampen
-from qube_suite.tasks.registry import SUITE, register
-from qube_suite.tasks.rotor import Rotor
-from qube_suite.tasks.swingup import Swingup, SwingupFollow
+from qube_suite.tasks.registry import SUITE, TaskSuite, register
 
-__all__ = ["SUITE", "BatchSafetyError", "QubeTask", "check_batch_safety", "register",
-           "Swingup", "SwingupFollow", "Balance", "BalanceFollow", "Dampen", "Rotor"]
+__all__ = ["SUITE", "BatchSafetyError", "QubeTask", "TaskSuite", "check_batch_safety", "register"]

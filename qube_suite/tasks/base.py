@@ -3,7 +3,7 @@
 Tasks use only the domain interface (`qube_suite.domains.interface.QubePhysics`),
 so they run unchanged in simulation and on hardware. Their formulas (reward,
 safe set, observation, task processes) take floats from one Qube or arrays from a
-batch of Qubes alike (`qube_suite.domains.qube_batch.QubeBatch`, used by the vector
+batch of Qubes alike (`qube_suite.devices.qube.batch.QubeBatch`, used by the vector
 environment through a task made with `worlds=N`), so each is written once; a
 registered task is checked for that (`qube_suite.tasks.batch_safety`).
 """

@@ -37,7 +37,7 @@ class ExploringStarts:
     equal shares, either both velocities uniform in +-1 rad/s, or the arm at rest
     and the pendulum swinging with about the energy of rest upright (between
     `APPROACH_ENERGY` times the swing-up energy 2 mp g l, rigid-body model of
-    `qube_suite.baselines.model`). Swing-up policies then meet the upright region
+    `qube_suite.devices.qube.controllers.model`). Swing-up policies then meet the upright region
     from the first episodes on, both slowly (where balancing is learnt) and at the
     end of a swing (where catching is learnt), instead of only after they have
     learnt to swing up; without the swinging starts PPO settled on spinning the
@@ -47,7 +47,7 @@ class ExploringStarts:
     APPROACH_ENERGY = (-0.15, 0.05)
 
     def __init__(self, task_start: Callable[[np.random.RandomState], np.ndarray], fraction: float):
-        from qube_suite.baselines.model import RigidBodyModel
+        from qube_suite.devices.qube.controllers.model import RigidBodyModel
 
         self._task_start = task_start
         self._fraction = fraction

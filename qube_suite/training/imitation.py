@@ -4,7 +4,7 @@
     imitate("swingup", teacher="swingup", steps=3_000_000, randomization="wide", history=8,
             out="runs/imitation")             # runs/imitation/policy.npz, model.zip, vecnormalize.pkl
 
-The model-based controllers (`qube_suite.baselines`) swing up and balance Qubes
+The model-based controllers (`qube_suite.devices.qube.controllers`) swing up and balance Qubes
 whose parameters differ from their model by tens of percent: their observer
 estimates, and their voltage cancels, the torques the model does not explain
 (friction, the cable's spring), and the swing-up adapts its energy from swing to
@@ -90,11 +90,11 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
     `teacher_settings`: keyword arguments of the teacher's controller (e.g. `ilqr`'s
     `{"swing_up": "energy", "reference_speed": 2.0}`).
     """
-    if teacher not in baselines.CONTROLLERS:
-        raise ValueError(f"unknown teacher {teacher!r}; controllers: {', '.join(baselines.CONTROLLERS)}")
-    if task not in baselines.CONTROLLERS[teacher].tasks:
+    if teacher not in baselines.names():
+        raise ValueError(f"unknown teacher {teacher!r}; controllers: {', '.join(baselines.names())}")
+    if task not in baselines.names()[teacher].tasks:
         raise ValueError(f"controller {teacher!r} is not made for task {task!r} "
-                         f"(its tasks: {', '.join(baselines.CONTROLLERS[teacher].tasks)})")
+                         f"(its tasks: {', '.join(baselines.names()[teacher].tasks)})")
     if not (isinstance(steps, int) and isinstance(iterations, int) and steps >= iterations >= 1):
         raise ValueError(f"need integers steps >= iterations >= 1, got steps={steps!r}, "
                          f"iterations={iterations!r}")

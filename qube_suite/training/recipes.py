@@ -201,9 +201,9 @@ def check(recipe: Recipe) -> None:
             suite.make_task("qube", stage.task, dict(stage.task_kwargs))
         except ValueError as error:
             raise ValueError(f"{where}: task_kwargs: {error}") from None
-        if stage.teacher is not None and stage.teacher not in baselines.CONTROLLERS:
+        if stage.teacher is not None and stage.teacher not in baselines.names():
             raise ValueError(f"{where}: unknown teacher {stage.teacher!r}; controllers: "
-                             f"{', '.join(baselines.CONTROLLERS)}")
+                             f"{', '.join(baselines.names())}")
         if stage.teacher is not None and (stage.init is not None or stage.keep != "policy.npz"):
             raise ValueError(f"{where}: an imitation stage starts afresh and keeps policy.npz")
         if (stage.teacher_knows_plant or stage.teacher_settings) and stage.teacher is None:

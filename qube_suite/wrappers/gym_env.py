@@ -56,7 +56,7 @@ class QubeEnv(gymnasium.Env):
     cos alpha, sin alpha, dtheta, dalpha] (+ target).
 
     ## Reward and start
-    The task's: see its class docstring (e.g. `help(qube_suite.tasks.Swingup)`) and
+    The task's: see its class docstring (e.g. `help(qube_suite.devices.qube.tasks.Swingup)`) and
     the task table in docs/tasks.md. Rewards are per step, at most 1.
 
     ## Episode end

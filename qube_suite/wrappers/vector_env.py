@@ -13,7 +13,7 @@ from gymnasium.vector.utils import batch_space
 from qube_suite import randomization as randomization_
 from qube_suite import suite
 from qube_suite.arguments import check_keywords, keywords_of
-from qube_suite.domains.qube_batch import QubeBatch
+from qube_suite.devices.qube.batch import QubeBatch
 from qube_suite.environment import DEFAULT_CONTROL_FREQUENCY, DEFAULT_TIME_LIMIT, episode_steps
 from qube_suite.episode_rules import judge_step
 from qube_suite.wrappers.gym_env import action_space, observation_space
@@ -27,7 +27,7 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
 
     Obtain one with `gymnasium.make_vec("QubeSuite/<Task>-v0", num_envs=N)`. All
     worlds advance in one call to MuJoCo's rollout on a thread pool
-    (`qube_suite.domains.qube_batch.QubeBatch`); rewards, terminations, observations
+    (`qube_suite.devices.qube.batch.QubeBatch`); rewards, terminations, observations
     and resets come from the same task definitions as the single environments,
     evaluated on arrays (a task made with `worlds=N`), under the same episode rules
     (`qube_suite.episode_rules`): this class adds only the batching, Gymnasium's
@@ -43,7 +43,7 @@ class QubeVectorEnv(gymnasium.vector.VectorEnv):
 
     ## Reward, start and episode end
     Each world's are the task's, as in the single environment (the task classes'
-    docstrings, e.g. `help(qube_suite.tasks.Swingup)`, and the table in docs/tasks.md).
+    docstrings, e.g. `help(qube_suite.devices.qube.tasks.Swingup)`, and the table in docs/tasks.md).
 
     ## Seeding
     `reset(seed=s)` seeds world i with s + i (like `SyncVectorEnv`); `seed=[s_0,

@@ -23,10 +23,10 @@ import numpy as np
 from dm_control.rl import control
 
 from qube_suite.arguments import is_number, keywords_of
+from qube_suite.devices.qube.simulation import check_control_frequency
 from qube_suite.devices.qube_disk import conventions
 from qube_suite.devices.qube_disk.substitute import plant_overrides
 from qube_suite.domains.interface import BoardClockAndLed
-from qube_suite.domains.qube import check_control_frequency
 from qube_suite.hardware import conventions as board_conventions
 from qube_suite.hardware.errors import HardwareError
 from qube_suite.hardware.quanser import DEVICES, SIMULATED, QuanserWrapper
@@ -75,6 +75,8 @@ class Physics(BoardClockAndLed, control.Physics):
 
     paced_by_board = True
     physics_error = None
+    state_names = conventions.STATE_NAMES
+    """The entries of `qube_state()`: what recordings name their state columns."""
 
     def __init__(self, control_frequency: float = 250.0, board: str = SIMULATED, device: str | None = None,
                  parameters: dict[str, float] | None = None, realtime: bool | None = None,

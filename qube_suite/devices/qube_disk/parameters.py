@@ -1,6 +1,6 @@
 """Physical parameters of the Qube-Servo 2/3 with the inertia-disk module: the disk's table.
 
-The motor rows are the Qube's own, read from `qube_suite.parameters` (the one table of the
+The motor rows are the Qube's own, read from `qube_suite.devices.qube.parameters` (the one table of the
 motor's nominal values, shared with the pendulum); the module rows are new here. Sources:
 
 - Disk mass 0.053 kg and radius 0.0248 m, attachment hub mass 0.0106 kg, radius 0.0111 m and
@@ -23,11 +23,11 @@ import types
 from collections.abc import Mapping
 from typing import Any
 
-from qube_suite import parameters as shared
+from qube_suite.devices.qube import parameters as shared
 
 MOTOR_NAMES = ("motor_resistance", "motor_torque_constant", "motor_back_emf", "rotor_inertia",
                "motor_inductance")
-"""The motor's parameters: the Qube's, read from `qube_suite.parameters`."""
+"""The motor's parameters: the Qube's, read from `qube_suite.devices.qube.parameters`."""
 
 _MODULE = (
     shared.Parameter("disk_mass", "md", 0.053, "kg", "inertia disk mass"),

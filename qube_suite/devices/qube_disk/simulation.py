@@ -16,11 +16,11 @@ import mujoco
 import numpy as np
 from dm_control import mujoco as dm_mujoco
 
-from qube_suite import parameters as shared_parameters
 from qube_suite.arguments import keywords_of
+from qube_suite.devices.qube import parameters as shared_parameters
+from qube_suite.devices.qube.simulation import check_control_frequency, physics_timestep
 from qube_suite.devices.qube_disk import parameters as disk_parameters
-from qube_suite.devices.qube_disk.conventions import MAX_SPEED
-from qube_suite.domains.qube import check_control_frequency, physics_timestep
+from qube_suite.devices.qube_disk.conventions import MAX_SPEED, STATE_NAMES
 
 FOLDER = pathlib.Path(__file__).resolve().parent
 MODEL_PATH = FOLDER / "model.xml"
@@ -42,6 +42,9 @@ class Physics(dm_mujoco.Physics):
 
     latency_steps = 0
     """A step applies its voltage at once."""
+
+    state_names = STATE_NAMES
+    """The entries of `qube_state()`: what recordings name their state columns."""
 
     physics_error: str | None = None
 

@@ -8,7 +8,7 @@ import numpy as np
 from dm_env import specs
 
 from qube_suite.conventions import GOAL_PENDULUM_TOLERANCE
-from qube_suite.tasks import rewards
+from qube_suite.devices.qube.tasks import rewards
 from qube_suite.tasks.base import QubeTask
 from qube_suite.tasks.follow import TARGET_LIMIT, make_schedule
 

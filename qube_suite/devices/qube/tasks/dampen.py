@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 from qube_suite.angles import wrap_angle
-from qube_suite.tasks.goal import GoalTask
+from qube_suite.devices.qube.tasks.goal import GoalTask
 from qube_suite.tasks.registry import register
 from qube_suite.tasks.starts import UniformStart
 

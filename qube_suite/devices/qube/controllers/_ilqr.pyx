@@ -1,10 +1,10 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
-"""The compiled iLQR iteration for the Qube: the same algorithm as `qube_suite.baselines.ilqr`, in C loops.
+"""The compiled iLQR iteration for the Qube: the same algorithm as `qube_suite.devices.qube.controllers.ilqr`, in C loops.
 
 `benchmarks/ilqr.py` measures why: at 250 Hz with a 0.8 s horizon (200 knots) one
 iteration costs milliseconds in numpy (Python loops over 4 x 4 matrices) and
 tens of microseconds here. The model, the cost and the steps are documented in
-`qube_suite.baselines.ilqr`; tests check that both give the same iterates.
+`qube_suite.devices.qube.controllers.ilqr`; tests check that both give the same iterates.
 """
 
 from libc.math cimport cos, sin, fabs, round, INFINITY, M_PI

@@ -13,16 +13,16 @@ from __future__ import annotations
 import math
 
 from qube_suite.arguments import check_keywords, is_number, keywords_of
-from qube_suite.baselines.base import Controller
-from qube_suite.baselines.dampen import DampenController
-from qube_suite.baselines.follow import FollowController
-from qube_suite.baselines.ilqr import IterativeLQR
-from qube_suite.baselines.lqr import BalanceLQR, lqr_gain
-from qube_suite.baselines.mpc import SamplingMPC
-from qube_suite.baselines.rotor import RotorController
-from qube_suite.baselines.swingup import SwingupController
 from qube_suite.capabilities import HasDesignParameters
-from qube_suite.domains.qube import check_control_frequency
+from qube_suite.devices.qube.controllers.base import Controller
+from qube_suite.devices.qube.controllers.dampen import DampenController
+from qube_suite.devices.qube.controllers.follow import FollowController
+from qube_suite.devices.qube.controllers.ilqr import IterativeLQR
+from qube_suite.devices.qube.controllers.lqr import BalanceLQR, lqr_gain
+from qube_suite.devices.qube.controllers.mpc import SamplingMPC
+from qube_suite.devices.qube.controllers.rotor import RotorController
+from qube_suite.devices.qube.controllers.swingup import SwingupController
+from qube_suite.devices.qube.simulation import check_control_frequency
 
 CONTROLLERS: dict[str, type[Controller]] = {
     cls.name: cls for cls in (BalanceLQR, SwingupController, DampenController, FollowController,

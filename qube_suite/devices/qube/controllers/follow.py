@@ -37,10 +37,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from qube_suite.baselines.base import Controller
-from qube_suite.baselines.lqr import lqr_design
-from qube_suite.baselines.swingup import SwingupController
 from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
+from qube_suite.devices.qube.controllers.base import Controller
+from qube_suite.devices.qube.controllers.lqr import lqr_design
+from qube_suite.devices.qube.controllers.swingup import SwingupController
 
 REFERENCE_STEP = math.radians(20.0)
 """Largest distance (rad) of the arm set-point from the arm."""

@@ -1,7 +1,7 @@
 """iLQR: receding-horizon optimal control of the Qube on its closed-form model.
 
 Model: x = [theta, alpha, dtheta, dalpha], u = motor voltage; the rigid-body
-equations of `qube_suite.baselines.model` stepped with RK4 over one control
+equations of `qube_suite.devices.qube.controllers.model` stepped with RK4 over one control
 period h. Derivatives: the continuous-time Jacobian of those equations in closed
 form, chained through the four RK4 stages, so A = dx'/dx and B = dx'/du are
 exact for the discrete model (`benchmarks/ilqr.py` compares them with MuJoCo's
@@ -41,14 +41,19 @@ from collections.abc import Mapping
 import numpy as np
 
 from qube_suite.angles import wrap_angle
-from qube_suite.baselines._ilqr import Kernel
-from qube_suite.baselines.base import Controller
-from qube_suite.baselines.follow import REFERENCE_LIMIT, REFERENCE_STEP, TargetSpeed, arm_set_point
-from qube_suite.baselines.lqr import BalanceLQR
-from qube_suite.baselines.model import RigidBodyModel
-from qube_suite.baselines.observer import UNMODELLED_TORQUE
-from qube_suite.baselines.swingup import CATCH_VOLTAGE, RELEASE_VOLTAGE, SwingupController
 from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
+from qube_suite.devices.qube.controllers._ilqr import Kernel
+from qube_suite.devices.qube.controllers.base import Controller
+from qube_suite.devices.qube.controllers.follow import (
+    REFERENCE_LIMIT,
+    REFERENCE_STEP,
+    TargetSpeed,
+    arm_set_point,
+)
+from qube_suite.devices.qube.controllers.lqr import BalanceLQR
+from qube_suite.devices.qube.controllers.model import RigidBodyModel
+from qube_suite.devices.qube.controllers.observer import UNMODELLED_TORQUE
+from qube_suite.devices.qube.controllers.swingup import CATCH_VOLTAGE, RELEASE_VOLTAGE, SwingupController
 
 DIAGONAL = (np.arange(4), np.arange(4))
 

@@ -28,12 +28,12 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from qube_suite.baselines.base import Controller
-from qube_suite.baselines.follow import arm_set_point
-from qube_suite.baselines.lqr import BalanceLQR
-from qube_suite.baselines.swingup import CATCH_VOLTAGE, RELEASE_VOLTAGE
 from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
+from qube_suite.devices.qube.controllers.base import Controller
+from qube_suite.devices.qube.controllers.follow import arm_set_point
+from qube_suite.devices.qube.controllers.lqr import BalanceLQR
+from qube_suite.devices.qube.controllers.swingup import CATCH_VOLTAGE, RELEASE_VOLTAGE
 
 ARM_MARGIN = math.radians(80.0)
 """Planned trajectories pay a large cost for the arm beyond +-80 degrees."""

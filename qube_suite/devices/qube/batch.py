@@ -26,9 +26,9 @@ import mujoco
 import mujoco.rollout
 import numpy as np
 
-from qube_suite import parameters as params
 from qube_suite.angles import wrap_angle
-from qube_suite.domains import qube
+from qube_suite.devices.qube import parameters as params
+from qube_suite.devices.qube import simulation as qube
 
 _STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
 """MuJoCo state layout of a world: time, qpos, qvel (the Qube has no other state)."""
@@ -39,7 +39,7 @@ MIN_WORLDS_PER_THREAD = 8
 
 
 def physics_model(control_frequency: float) -> mujoco.MjModel:
-    """The Qube's compiled model (`assets/qube.xml`, without the scene) for control at
+    """The Qube's compiled model (`devices/qube/model.xml`, without the scene) for control at
     `control_frequency` (Hz).
 
     The scene (bench, lights, cameras, textures) is only drawn; without it a model takes

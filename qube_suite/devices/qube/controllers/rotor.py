@@ -15,9 +15,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from qube_suite.baselines.base import Controller
-from qube_suite.baselines.energy import EnergyShaping
 from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
+from qube_suite.devices.qube.controllers.base import Controller
+from qube_suite.devices.qube.controllers.energy import EnergyShaping
 
 ROTOR_ENERGY = 0.5
 """Set energy above upright at rest, as a fraction of 2 mp g l."""

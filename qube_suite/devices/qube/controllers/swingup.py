@@ -30,10 +30,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from qube_suite.baselines.base import Controller
-from qube_suite.baselines.energy import ENERGY_BAND, EnergyShaping
-from qube_suite.baselines.lqr import BalanceLQR
 from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
+from qube_suite.devices.qube.controllers.base import Controller
+from qube_suite.devices.qube.controllers.energy import ENERGY_BAND, EnergyShaping
+from qube_suite.devices.qube.controllers.lqr import BalanceLQR
 
 ENERGY_MARGIN = 0.03
 """Set energy above upright at rest, as a fraction of 2 mp g l: covers friction and model error."""

@@ -22,10 +22,10 @@ from collections.abc import Mapping
 import numpy as np
 
 from qube_suite.angles import wrap_angle
-from qube_suite.baselines.base import Controller
-from qube_suite.baselines.energy import EnergyShaping
-from qube_suite.baselines.lqr import lqr_design
 from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
+from qube_suite.devices.qube.controllers.base import Controller
+from qube_suite.devices.qube.controllers.energy import EnergyShaping
+from qube_suite.devices.qube.controllers.lqr import lqr_design
 
 STATE_WEIGHTS = (2.0, 5.0, 0.05, 0.5)
 """LQR weights on [theta, alpha - pi, dtheta, dalpha] (rad, rad/s) about hanging."""

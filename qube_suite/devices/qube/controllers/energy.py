@@ -2,7 +2,7 @@
 
 The motor changes the total energy E of arm and pendulum only through its work,
 dE/dt = tau theta', and the angular momentum p about the motor axis only through
-its torque (see `qube_suite.baselines.model`). Split the arm angle as
+its torque (see `qube_suite.devices.qube.controllers.model`). Split the arm angle as
 theta = psi + g(alpha): g is the part the pendulum's swing carries the arm through
 by itself (with p = 0), psi the swing centre, psi' = p / M11. Then
 
@@ -38,8 +38,8 @@ from __future__ import annotations
 
 import math
 
-from qube_suite.baselines.model import RigidBodyModel
 from qube_suite.conventions import ARM_LIMIT
+from qube_suite.devices.qube.controllers.model import RigidBodyModel
 
 ENERGY_BAND = 0.1
 """Energy error (fraction of 2 mp g l) at which the pump reaches full torque."""

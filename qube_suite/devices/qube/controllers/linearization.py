@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from qube_suite.domains import qube
+from qube_suite.devices.qube import simulation as qube
 
 
 def linearize(physics: qube.Physics, state, voltage: float, nstep: int,

@@ -51,10 +51,10 @@ import math
 import numpy as np
 import scipy.linalg
 
-from qube_suite import parameters as params
 from qube_suite.angles import wrap_angle
-from qube_suite.baselines.model import RigidBodyModel
-from qube_suite.domains import qube
+from qube_suite.devices.qube import parameters as params
+from qube_suite.devices.qube import simulation as qube
+from qube_suite.devices.qube.controllers.model import RigidBodyModel
 
 UNMODELLED_TORQUE = 1.0e-3
 """F (N m): size of the arm torque the model leaves out (a real Qube's Coulomb friction)."""

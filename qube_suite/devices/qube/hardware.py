@@ -53,9 +53,9 @@ from typing import Any
 import numpy as np
 from dm_control.rl import control
 
-from qube_suite import parameters as params
 from qube_suite.angles import wrap_angle
 from qube_suite.arguments import keywords_of
+from qube_suite.devices.qube import parameters as params
 from qube_suite.domains.interface import BoardClockAndLed, MeasuredState
 from qube_suite.hardware import conventions
 from qube_suite.hardware.errors import EncoderGlitchError, HardwareError
@@ -64,7 +64,7 @@ from qube_suite.hardware.plant import BOARD_MOTORS
 from qube_suite.hardware.quanser import DEVICES, SIMULATED, QuanserWrapper
 
 RESET_CONTROLLERS = ("dampen", "swingup")
-"""The controllers that reach the episodes' starts (`qube_suite.baselines` names): handed to the domain
+"""The controllers that reach the episodes' starts (names of `controllers`): handed to the domain
 by `suite.load` before the board samples. Each is called with the state estimate [theta, alpha,
 dtheta, dalpha] and returns volts, has `reset()` and `close()`, and its `model.energy(alpha, dtheta,
 dalpha)` gives the energy (J) the reset pumps the swing to (`model.gravity_torque`: mp g l, N m)."""
@@ -495,7 +495,7 @@ class Physics(BoardClockAndLed, MeasuredState, control.Physics):
 
     def _digital_twin(self):
         if self._twin is None:
-            from qube_suite.domains import qube
+            from qube_suite.devices.qube import simulation as qube
 
             self._twin = qube.make_physics(self._frequency, self._design)
         return self._twin
@@ -689,7 +689,7 @@ def make_physics(control_frequency: float = 250.0, **options: Any) -> Physics:
     from collections.abc import Mapping
 
     from qube_suite.arguments import is_number
-    from qube_suite.domains.qube import check_control_frequency
+    from qube_suite.devices.qube.simulation import check_control_frequency
 
     check_control_frequency(control_frequency)
     for key in ("max_voltage", "reset_voltage_limit", "reset_timeout"):

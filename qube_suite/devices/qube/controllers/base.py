@@ -7,9 +7,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from qube_suite.baselines.model import RigidBodyModel
-from qube_suite.baselines.observer import StateObserver
 from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT, ObservationLayout
+from qube_suite.devices.qube.controllers.model import RigidBodyModel
+from qube_suite.devices.qube.controllers.observer import StateObserver
 
 
 class Controller:
@@ -25,7 +25,7 @@ class Controller:
     for) and implement `voltage_for`; `reset` is called at the start of each episode.
 
     Observations are read through `observation_layout`, the task's
-    (`QubeTask.observation_layout`, set by `qube_suite.baselines.for_environment`); by
+    (`QubeTask.observation_layout`, set by `qube_suite.devices.qube.controllers.for_environment`); by
     default the state layout, with a target if the controller `follows_target`.
 
     Args:

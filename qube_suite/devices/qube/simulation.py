@@ -1,9 +1,9 @@
-"""The simulated Qube: MuJoCo physics of `assets/scene.xml` (the Qube of `assets/qube.xml` on its
+"""The simulated Qube: MuJoCo physics of `devices/qube/scene.xml` (the Qube of `devices/qube/model.xml` on its
 bench) in the Qube's own terms.
 
 `make_physics(control_frequency, parameters)` builds a `Physics` whose timestep
 divides the control period; `Physics.set_parameters` writes physical parameters
-(by the long names of `qube_suite.parameters`) into the compiled model in place,
+(by the long names of `qube_suite.devices.qube.parameters`) into the compiled model in place,
 keeping derived quantities consistent (a longer pendulum moves its centre of
 mass, inertia and drawing too).
 """
@@ -22,12 +22,12 @@ import numpy as np
 from dm_control import mujoco as dm_mujoco
 from dm_control.mujoco import wrapper as dm_wrapper
 
-from qube_suite import parameters as params
 from qube_suite.angles import wrap_angle
 from qube_suite.arguments import is_number, keywords_of
+from qube_suite.devices.qube import parameters as params
 from qube_suite.domains.interface import MeasuredState
 
-MODEL_PATH = pathlib.Path(__file__).resolve().parent.parent / "assets" / "qube.xml"
+MODEL_PATH = pathlib.Path(__file__).resolve().parent / "model.xml"
 """The Qube alone: bodies, joints, actuator, keyframes `hanging` and `upright`."""
 
 SCENE_PATH = MODEL_PATH.with_name("scene.xml")
@@ -42,7 +42,7 @@ MAX_CONTROL_FREQUENCY = 2000.0
 
 MAX_PLAUSIBLE_SPEED = 1e4
 """Largest |d theta / dt| + |d alpha / dt| (rad/s) of a simulation that has not diverged: 40 times
-the motor's no-load speed at 10 V (238 rad/s). MuJoCo's automatic reset is off in qube.xml, so a
+the motor's no-load speed at 10 V (238 rad/s). MuJoCo's automatic reset is off in model.xml, so a
 diverged state stays (huge, inf or NaN) and fails this check."""
 
 
@@ -577,7 +577,7 @@ def physics_timestep(control_frequency: float) -> float:
 
 def make_physics(control_frequency: float = 250.0, parameters: Mapping[str, float] | Any = None) -> Physics:
     """A simulated Qube for control at `control_frequency` (Hz) with `parameters`: by long name, or
-    a calibration (`Calibration` or its file's path; see `qube_suite.parameters.values_of`)."""
+    a calibration (`Calibration` or its file's path; see `qube_suite.devices.qube.parameters.values_of`)."""
     check_control_frequency(control_frequency)
     overrides = params.values_of(parameters)
     physics = Physics.from_xml_path(str(SCENE_PATH))

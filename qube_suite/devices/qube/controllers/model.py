@@ -1,8 +1,8 @@
 """The Qube's rigid-body equations in closed form, for controllers that evaluate them every call.
 
 Coordinates: arm angle theta, pendulum angle alpha (0 upright); s = sin alpha,
-c = cos alpha, l = Lp/2. The coefficients are those of `qube_suite/assets/qube.xml`
-for the physical parameters of `qube_suite.parameters` (Lagrange's equations of
+c = cos alpha, l = Lp/2. The coefficients are those of `qube_suite/devices/qube/model.xml`
+for the physical parameters of `qube_suite.devices.qube.parameters` (Lagrange's equations of
 the arm, the rotor and a uniform rod with a small axial inertia Ja):
 
     M11 theta'' + M12 alpha'' + 2 K s c theta' alpha' + mp Lr l s alpha'^2 = tau - Dr theta'
@@ -37,7 +37,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from qube_suite import parameters as params
+from qube_suite.devices.qube import parameters as params
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,7 +66,7 @@ class RigidBodyModel:
     @classmethod
     def from_parameters(cls, overrides: Mapping[str, float] | Any = None) -> RigidBodyModel:
         """The model for the nominal parameters updated by `overrides` (long names, or a calibration:
-        see `qube_suite.parameters.values_of`)."""
+        see `qube_suite.devices.qube.parameters.values_of`)."""
         p = params.resolve(params.values_of(overrides))
         mp, lp, lr = p["pendulum_mass"], p["pendulum_length"], p["arm_length"]
         half = lp / 2.0

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from qube_suite.tasks.goal import FollowsTarget, GoalTask
+from qube_suite.devices.qube.tasks.goal import FollowsTarget, GoalTask
 from qube_suite.tasks.registry import register
 from qube_suite.tasks.starts import UniformStart
 

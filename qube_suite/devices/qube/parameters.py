@@ -3,7 +3,7 @@
 Nominal values are Quanser's published Qube-Servo 2 rotary-pendulum model
 (motor, arm and pendulum data of the Qube-Servo 2 user manual and the
 rotary-pendulum workbook's parameter file), except where a note says otherwise.
-`qube_suite/assets/qube.xml` carries the same numbers so that it can be used on its
+`qube_suite/devices/qube/model.xml` carries the same numbers so that it can be used on its
 own; the tests keep the two equal.
 
 Viscous damping: published values disagree by two orders of magnitude (arm
@@ -72,7 +72,7 @@ PARAMETERS: types.MappingProxyType[str, Parameter] = types.MappingProxyType({p.n
 NOMINAL: types.MappingProxyType[str, float] = types.MappingProxyType({p.name: p.nominal for p in _TABLE})
 """Nominal value of every parameter by long name."""
 
-REAL_QUBE_SERVO2 = os.path.join(os.path.dirname(os.path.abspath(__file__)), "assets", "real_qube_servo2.yaml")
+REAL_QUBE_SERVO2 = os.path.join(os.path.dirname(os.path.abspath(__file__)), "real_qube_servo2.yaml")
 """A calibration of a real Qube-Servo 2 (TU Darmstadt's, from ten voltage chirps it recorded;
 `benchmarks/real_qube.py --save`): `domain_kwargs={"parameters": REAL_QUBE_SERVO2}` simulates it,
 its latency, dead zone, cable and encoder offset included. The nominal values above stay the

@@ -7,11 +7,11 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import scipy.linalg
 
-from qube_suite import parameters as params
-from qube_suite.baselines.base import Controller
-from qube_suite.baselines.linearization import linearize
 from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
-from qube_suite.domains import qube
+from qube_suite.devices.qube import parameters as params
+from qube_suite.devices.qube import simulation as qube
+from qube_suite.devices.qube.controllers.base import Controller
+from qube_suite.devices.qube.controllers.linearization import linearize
 
 STATE_WEIGHTS = (2.0, 20.0, 0.05, 0.5)
 """Default LQR state weights on [theta, alpha, dtheta, dalpha] (rad, rad/s)."""
