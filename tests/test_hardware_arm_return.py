@@ -63,6 +63,20 @@ def test_a_reset_brings_back_an_arm_beyond_the_limit_towards_the_centre_slowly(s
             timestep = env.step(np.zeros(1))
 
 
+@pytest.mark.parametrize("speed", [20.0, -30.0, 50.0])
+def test_a_reset_catches_an_arm_that_left_its_safe_set_fast_before_it_coasts_past_the_limit(speed):
+    # a policy that throws the arm out at 20 to 30 rad/s: at 0 V it would coast past 120 degrees while the
+    # reset settles the pendulum, and the board would stop with ArmLimitError instead of resetting
+    with suite.load("qube_hardware", "swingup", task_kwargs={"random": 0}) as env:
+        env.reset()
+        board = env.physics.qube.board
+        board.set_true_state([math.copysign(math.radians(88.0), speed), math.pi, speed, 0.0])
+        assert env.step(np.array([math.copysign(3.0, speed)])).last()
+        env.reset()
+        assert abs(env.physics.arm_angle()) < math.radians(10.0)
+        assert board.amplifier_enabled  # reset, not stopped
+
+
 def test_a_held_arm_is_not_pushed_against_its_holder():
     with suite.load("qube_hardware", "swingup", task_kwargs={"random": 0},
                     environment_kwargs={"time_limit": 0.2}) as env:

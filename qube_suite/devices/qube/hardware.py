@@ -583,13 +583,20 @@ class Physics(BoardClockAndLed, MeasuredState, control.Physics):
         self._samples += 1
 
     def _return_arm(self) -> None:
-        """Bring an arm found beyond the board's arm limit back to within `RETURN_TARGET` of its zero
-        at `RETURN_SPEED`, with at most `RETURN_DRIVE`: beyond the limit the voltage only pushes
-        inwards, and only once the arm no longer coasts outwards (0 V brakes it through the motor's
-        back-EMF); within the limit it may brake harder. The
-        wrapper's `return_arm` stops the motor if the arm is held or moves away."""
+        """Bring an arm found beyond the board's arm limit, or turning outwards faster than
+        `RETURN_SPEED` (an episode that ended with the arm leaving its safe set fast, which would coast
+        past the limit), back to within `RETURN_TARGET` of its zero at `RETURN_SPEED`, with at most
+        `RETURN_DRIVE`: beyond the limit the voltage only pushes inwards, and only once the arm no
+        longer coasts outwards (0 V brakes it through the motor's back-EMF); within the limit it may
+        brake harder. The wrapper's `return_arm` stops the motor if the arm is held or moves away."""
         limit = self.qube.arm_limit
-        if limit is None or abs(self._arm_unwrapped()) <= limit:
+        if limit is None:
+            return
+        before = self._arm_unwrapped()  # the estimator restarted with the board: the speed from two samples
+        self._sample(0.0, returning=True)
+        theta = self._arm_unwrapped()
+        turning_out = (abs(theta) - abs(before)) * self._frequency > RETURN_SPEED
+        if abs(theta) <= limit and not turning_out:
             return
         self._led = RESET_LED
         for _ in range(round(self._reset_timeout * self._frequency)):
