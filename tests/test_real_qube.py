@@ -220,3 +220,33 @@ def test_one_recording_with_current_is_fitted_with_it(tmp_path):
     found = calibration.calibrate_recordings([path])
     assert found.parameters["motor_resistance"] == pytest.approx(9.2, rel=0.03)
     assert found.parameters["pendulum_mass"] == pytest.approx(0.026, rel=0.05)
+
+
+def test_the_real_qube_preset_contains_the_calibrated_real_qube():
+    from qube_suite import parameters, randomization
+
+    shipped = calibration.load(parameters.REAL_QUBE_SERVO2)
+    preset = randomization.load("real_qube")
+
+    def inside(distribution, value, nominal=1.0):
+        scale = nominal if distribution.relative else 1.0
+        return distribution.low * scale <= value <= distribution.high * scale
+
+    for name, value in shipped.parameters.items():
+        nominal = parameters.NOMINAL[name]
+        if name in preset.parameters:
+            assert inside(preset.parameters[name], value, nominal), name
+        else:
+            assert value == nominal, name  # what the preset leaves alone is the calibration's too
+    effects = preset.effects
+    period = 1.0 / 250.0
+    delay = effects["action_delay"]["seconds"]
+    assert delay.low <= shipped.actuation["latency_seconds"] <= delay.high - period  # 1.5 steps: 1 and 2 drawn
+    assert inside(effects["dead_zone"]["voltage"], shipped.actuation["voltage_deadzone"])
+    rest_torque = parameters.effects_of(shipped)["cable_rest_angle"] * shipped.parameters["cable_stiffness"]
+    gain = shipped.parameters["motor_torque_constant"] / shipped.parameters["motor_resistance"]
+    assert inside(effects["voltage_offset"]["voltage"], rest_torque / gain)
+    assert abs(shipped.offsets["pendulum_encoder_offset"]) < 2 * np.pi / parameters.ENCODER_COUNTS_PER_REVOLUTION
+    for name in ("sim2real", "wide"):  # the presets the shipped policies were trained with do not
+        assert not inside(randomization.load(name).parameters["rotor_inertia"], shipped.parameters["rotor_inertia"],
+                          parameters.NOMINAL["rotor_inertia"])
