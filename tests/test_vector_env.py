@@ -248,7 +248,7 @@ def test_a_world_given_a_calibration_runs_like_a_single_env_made_with_it():
     from qube_suite.calibration import calibration_file
 
     calibrated = parameters.REAL_QUBE_SERVO2
-    assert {"latency_seconds", "voltage_deadzone", "cable_rest_angle",
+    assert {"latency_seconds", "voltage_deadzone", "cable_rest_angle", "cable_slack",
             "pendulum_encoder_offset"} <= set(parameters.effects_of(calibrated))
     sources = [calibrated, None, calibration_file.load(calibrated)]
 

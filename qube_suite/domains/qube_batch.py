@@ -17,7 +17,7 @@ own model, and the worlds taking the same number advance in one rollout call.
 
 A world given a calibration (`set_parameters(world, "my_qube.yaml")`) gets its effects too, as
 `qube.make_physics` gives them to one Qube: the latency and dead zone between command and motor,
-the cable's rest angle and the pendulum encoder's offset (`parameters.effects_of`).
+the cable's rest angle and slack and the pendulum encoder's offset (`parameters.effects_of`).
 """
 
 from __future__ import annotations
@@ -268,7 +268,8 @@ class QubeBatch:
             if self._calibrated is None:
                 self._calibrated = CalibratedEffects(self.num_worlds, self._nominal_durations[0])
             self._calibrated.set(world, effects)
-            model.qpos_spring[self._ids.arm_qpos] = effects.get("cable_rest_angle", 0.0)
+            qube.write_cable(model, self._ids, self._parameters[world]["cable_stiffness"],
+                             effects.get("cable_rest_angle", 0.0), effects.get("cable_slack", 0.0))
             self._measure()
 
     def close(self) -> None:
