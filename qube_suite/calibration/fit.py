@@ -426,14 +426,15 @@ def _voltage_residual(x, signals_, voltages, latency, weights) -> np.ndarray:
 
 
 def fit_voltage(recordings: list[Measurements], samples: list[np.ndarray | None] | None = None,
-                latency: float | None = None, free: tuple[str, ...] | None = None) -> VoltageFitResult:
+                latency: float | None = None, free: tuple[str, ...] | None = None,
+                slack: float | None = None) -> VoltageFitResult:
     """Fit the voltage-only unknowns to several `recordings` at once, each on its sample indices
     `samples` (None: all).
 
     `latency` (samples, a fraction allowed): None searches 0 to MAX_LATENCY in steps of LATENCY_STEP.
     `free`: the unknowns fitted (None: all of `VOLTAGE_ONLY`); the others stay at their nominal value
     (0 for the friction-like ones and the offsets), which is how the benchmark measures what each
-    part of the model buys.
+    part of the model buys. `slack`: the cable's slack (rad; None: searched on `SLACK_GRID` if free).
     """
     samples = samples or [None] * len(recordings)
     signals_ = tuple(voltage_signals(m, chosen) for m, chosen in zip(recordings, samples, strict=True))
@@ -475,7 +476,9 @@ def fit_voltage(recordings: list[Measurements], samples: list[np.ndarray | None]
                     best[3] + 2 * LATENCY_STEP):
             if 0.0 <= lat <= MAX_LATENCY:
                 best = min(best, solve(lat) + (lat,), key=lambda f: f[2])
-    if "cable_slack" in free:  # a grid (local minima), then half its step either side of the best
+    if slack is not None:
+        best = solve(best[3], slack, best[0]) + (best[3],)
+    elif "cable_slack" in free:  # a grid (local minima), then half its step either side of the best
         lat, linear = best[3], best[0]
         for slack in SLACK_GRID[1:]:
             best = min(best, solve(lat, slack, linear) + (lat,), key=lambda f: f[2])
