@@ -251,14 +251,18 @@ def test_a_world_given_a_calibration_runs_like_a_single_env_made_with_it():
     assert {"latency_seconds", "voltage_deadzone", "cable_rest_angle", "cable_slack",
             "pendulum_encoder_offset"} <= set(parameters.effects_of(calibrated))
     sources = [calibrated, None, calibration_file.load(calibrated)]
+    heavier = {"pendulum_mass": 0.03}  # then given to the last world by name: it keeps its effects
 
     def calibrate(batch, world, random):
         batch.set_parameters(world, sources[world])
+        if world == 2:
+            batch.set_parameters(world, heavier)
 
     vector = gymnasium.make_vec("QubeSuite/Swingup-v0", num_envs=3, reset_hook=calibrate)
     observations, _ = vector.reset(seed=SEEDS)
     singles = [gymnasium.make("QubeSuite/Swingup-v0", domain_kwargs={"parameters": source})
                for source in sources]
+    singles[2].unwrapped.physics.set_parameters(heavier)
     expected = [env.reset(seed=seed)[0] for env, seed in zip(singles, SEEDS, strict=True)]
     np.testing.assert_array_equal(observations, expected)
     nominal = gymnasium.make("QubeSuite/Swingup-v0")

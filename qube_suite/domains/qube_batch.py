@@ -254,23 +254,31 @@ class QubeBatch:
         return dict(self._parameters[world])
 
     def set_parameters(self, world: int, overrides: Mapping[str, float] | Any = None) -> None:
-        """Set `world`'s parameters to the nominal ones updated by `overrides` (by long name, or a
-        calibration or its file's path, whose effects the world takes too: `parameters.effects_of`),
-        in place.
+        """Set `world`'s parameters to the nominal ones updated by `overrides`, in place: by long
+        name (the world keeps any calibrated effects it has, as one simulated Qube does), or a
+        calibration or its file's path, whose effects replace the world's (`set_calibrated_effects`).
 
         Takes effect from the next `step`; the state is kept. Raises ValueError for an
         unknown name or an impossible value (the model is unchanged then).
         """
-        values, effects = params.values_of(overrides), params.effects_of(overrides)
+        values = params.values_of(overrides)
         model = self._own_model(world)
         self._parameters[world] = qube.write_parameters(model, self._scratch, values, self._ids)
-        if effects or self._calibrated is not None:
-            if self._calibrated is None:
-                self._calibrated = CalibratedEffects(self.num_worlds, self._nominal_durations[0])
-            self._calibrated.set(world, effects)
+        if overrides is not None and not isinstance(overrides, Mapping):
+            self.set_calibrated_effects(world, params.effects_of(overrides))
+        elif self._calibrated is not None:  # the cable's spring was rewritten: put its shape back
             qube.write_cable(model, self._ids, self._parameters[world]["cable_stiffness"],
-                             effects.get("cable_rest_angle", 0.0), effects.get("cable_slack", 0.0))
-            self._measure()
+                             *self._calibrated.cable(world))
+
+    def set_calibrated_effects(self, world: int, effects: Mapping[str, float]) -> None:
+        """Give `world` a calibration's effects (`parameters.effects_of`; empty: none), as
+        `qube.Physics.set_calibrated_effects` gives one Qube, and restart its command history."""
+        if self._calibrated is None:
+            self._calibrated = CalibratedEffects(self.num_worlds, self._nominal_durations[0])
+        self._calibrated.set(world, effects)
+        qube.write_cable(self._own_model(world), self._ids, self._parameters[world]["cable_stiffness"],
+                         *self._calibrated.cable(world))
+        self._measure()
 
     def close(self) -> None:
         """Stop the rollout threads."""
@@ -342,7 +350,8 @@ class QubeBatch:
 class CalibratedEffects:
     """The calibrated effects of each of `num_worlds` Qubes controlled every `control_period` s: the
     array form of `qube.CalibratedActuation` (latency, a fraction of a period allowed, then dead
-    zone) and `qube.PendulumEncoderOffset`, worlds without a calibration unaffected."""
+    zone) and `qube.PendulumEncoderOffset`, and each world's cable (`qube.write_cable` puts it in
+    the world's model); worlds without a calibration unaffected."""
 
     def __init__(self, num_worlds: int, control_period: float):
         self.control_period = control_period
@@ -350,6 +359,8 @@ class CalibratedEffects:
         self.fraction = np.zeros(num_worlds)
         self.deadzone = np.zeros(num_worlds)
         self.pendulum_offset = np.zeros(num_worlds)
+        self.cable_rest = np.zeros(num_worlds)
+        self.cable_slack = np.zeros(num_worlds)
         self._history = np.zeros((num_worlds, 2))
         """Commands of each world, oldest first; the last column is the latest."""
 
@@ -360,12 +371,18 @@ class CalibratedEffects:
         self.fraction[world] = latency - self.whole[world]
         self.deadzone[world] = effects.get("voltage_deadzone", 0.0)
         self.pendulum_offset[world] = effects.get("pendulum_encoder_offset", 0.0)
+        self.cable_rest[world] = effects.get("cable_rest_angle", 0.0)
+        self.cable_slack[world] = effects.get("cable_slack", 0.0)
         needed = int(self.whole.max()) + 2
         if needed > self._history.shape[1]:
             grown = np.zeros((len(self.whole), needed))
             grown[:, -self._history.shape[1]:] = self._history
             self._history = grown
         self.restart(world)
+
+    def cable(self, world: int) -> tuple[float, float]:
+        """`world`'s cable: its rest angle and the half-width of its slack band (rad)."""
+        return float(self.cable_rest[world]), float(self.cable_slack[world])
 
     def restart(self, world: int) -> None:
         """Forget `world`'s earlier commands: 0 V until new ones are due."""
