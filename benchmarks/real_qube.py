@@ -10,7 +10,7 @@ estimated on the 0.1 s before each start, recorded voltages replayed; both angle
 * held-out chirps: leave one recording out, calibrate on the other nine, predict it;
 * every swing-up, from a calibration on all ten chirps;
 * what each part of the model buys: calibrations on eight chirps (held out: neg_4, pos_4) with
-  the unknowns added one group at a time;
+  the unknowns added one group at a time, each row also predicting every swing-up 0.1 s ahead;
 * the parameters with their 95 % intervals against nominal, and the spread (min, max) of the
   ten single-chirp calibrations: honest intervals contain most of that spread;
 * a figure of recorded against predicted angles (`--figure`), and the wall time.
@@ -53,7 +53,10 @@ ABLATION = (
     ("+ cable spring and its rest angle", ("cable_stiffness", "arm_torque_offset")),
     ("+ voltage dead zone", ("voltage_deadzone",)),
     ("+ fractional-sample latency", ()),
+    ("+ slack band of the cable", ("cable_slack",)),
 )
+FRACTIONAL_LATENCY_ROW = 4
+"""The ablation's rows before this one take the latency rounded to whole samples."""
 
 
 def predict(calibration_: calibration.Calibration | None, m, horizon: float) -> np.ndarray:
@@ -68,7 +71,8 @@ def predict(calibration_: calibration.Calibration | None, m, horizon: float) -> 
         m, c.parameters, samples, c.actuation["latency_seconds"] / m.sample_time,
         (0.0, c.offsets["pendulum_encoder_offset"]), horizon=horizon,
         voltage_deadzone=c.actuation["voltage_deadzone"],
-        cable_rest_angle=0.0 if rest is None else -rest, smoothed_start=SMOOTHED_START).error_at_horizon
+        cable_rest_angle=0.0 if rest is None else -rest, cable_slack=c.offsets.get("cable_slack", 0.0),
+        smoothed_start=SMOOTHED_START).error_at_horizon
 
 
 def rms(errors: list[np.ndarray]) -> float:
@@ -126,12 +130,14 @@ def main() -> None:
     test = [read[p] for p in chirps if p.endswith("_4.csv")]
     free: tuple[str, ...] = ()
     results["ablation"] = []
-    for name, added in ABLATION:
+    for index, (name, added) in enumerate(ABLATION):
         free = free + added
         c = calibration.calibrate_recordings(train, free=free)
-        if name != ABLATION[-1][0]:  # until the last row, the latency rounded to whole samples
+        if index < FRACTIONAL_LATENCY_ROW:  # until then, the latency rounded to whole samples
             c.actuation["latency_seconds"] = round(c.latency_steps) * read[train[0]].sample_time
-        row = {"model": name, "chirps": table(c, test), "latency_ms": 1e3 * c.actuation["latency_seconds"]}
+        row = {"model": name, "chirps": table(c, test), "latency_ms": 1e3 * c.actuation["latency_seconds"],
+               "swingups_0.1s": {f"{hz}Hz": rms([predict(c, read[p], 0.1) for p in paths])
+                                 for hz, paths in swings.items()}}
         results["ablation"].append(row)
         print("ablation", row, flush=True)
 
@@ -231,7 +237,8 @@ def figure(c: calibration.Calibration, chirp, swing, path: str) -> None:
                 m, c.parameters, samples, c.actuation["latency_seconds"] / m.sample_time,
                 (0.0, c.offsets["pendulum_encoder_offset"]), horizon=0.5,
                 voltage_deadzone=c.actuation["voltage_deadzone"],
-                cable_rest_angle=0.0 if rest is None else -rest)}
+                cable_rest_angle=0.0 if rest is None else -rest,
+                cable_slack=c.offsets.get("cable_slack", 0.0))}
         for row, label in enumerate(("arm angle (rad)", "pendulum angle (rad)")):
             ax = axes[row, column]
             ax.plot(m.time, m.theta if row == 0 else m.alpha, "k", lw=1, label="recorded")

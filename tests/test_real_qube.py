@@ -90,14 +90,19 @@ def test_conventions_and_npz_give_the_same_measurements(tmp_path):
     np.testing.assert_allclose(np.cos(converted.alpha), np.cos(reference.alpha), atol=1e-12)
 
 
-def simulated_chirp(truth, latency, deadzone, seconds=8.0, rate=250.0):
+def simulated_chirp(truth, latency, deadzone, seconds=8.0, rate=250.0, cable=None):
     """Angles of the simulated Qube with parameters `truth` under a chirp whose voltage acts `latency`
-    samples late through a dead zone of `deadzone` V."""
+    samples late through a dead zone of `deadzone` V; `cable`: its effects (rest angle, slack) if any,
+    and a slow sine added to the chirp that swings the arm beyond the slack."""
     t = np.arange(0.0, seconds, 1.0 / rate)
     voltage = 1.5 * np.sin(2 * np.pi * (6.0 - 0.35 * t) * t)
+    if cable:
+        voltage += 0.1 * np.sin(2 * np.pi * 0.4 * t)
     acting = fit.delayed_voltage(voltage, latency)
     acting = np.sign(acting) * np.maximum(np.abs(acting) - deadzone, 0.0)
     physics = qube.make_physics(rate, truth)
+    if cable:
+        physics.set_calibrated_effects(cable, 1.0 / rate)
     physics.reset_to([0.0, np.pi, 0.0, 0.0])
     angles = []
     for volts in acting:
@@ -112,12 +117,16 @@ def test_the_voltage_only_fit_recovers_a_known_simulated_qube(tmp_path):
     truth = {"motor_torque_constant": 0.038, "motor_back_emf": 0.038, "rotor_inertia": 3e-5,
              "pendulum_damping": 4e-6, "arm_damping": 5e-5, "pendulum_length": 0.125,
              "cable_stiffness": 1.5e-3}
-    paths = [write(tmp_path / "chirp.csv", simulated_chirp(truth, latency=1.5, deadzone=0.05))]
-    found = calibration.calibrate_recordings(paths)
+    cable = {"cable_rest_angle": -0.2, "cable_slack": 0.4}
+    rows = simulated_chirp(truth, latency=1.5, deadzone=0.05, cable=cable)
+    assert np.ptp(rows[:, 2]) > 2 * (cable["cable_slack"] + 0.2)  # the arm pulls on the cable both ways
+    found = calibration.calibrate_recordings([write(tmp_path / "chirp.csv", rows)])
     assert found.latency_steps == pytest.approx(1.5, abs=0.25)
     for name in ("motor_torque_constant", "rotor_inertia", "pendulum_length", "cable_stiffness"):
         assert found.parameters[name] == pytest.approx(truth[name], rel=0.05), name
     assert found.actuation["voltage_deadzone"] == pytest.approx(0.05, abs=0.03)
+    assert found.offsets["cable_slack"] == pytest.approx(cable["cable_slack"], abs=0.1)
+    assert -found.offsets["arm_encoder_offset"] == pytest.approx(cable["cable_rest_angle"], abs=0.05)
 
 
 @pytest.mark.skipif(not os.path.isdir(REAL_QUBE),
@@ -180,6 +189,28 @@ def test_a_calibration_file_gives_the_simulation_its_latency_dead_zone_and_offse
     assert physics.true_state()[0] > 0.1  # the cable pulls the arm towards its rest angle, 0.3 rad
 
 
+def test_a_slack_cable_pulls_the_arm_only_beyond_its_band(tmp_path):
+    from qube_suite.calibration.calibration_file import Calibration
+    from qube_suite.devices.qube import parameters
+
+    found = Calibration(parameters=parameters.resolve({"cable_stiffness": 2e-3}), intervals={}, metadata={},
+                        offsets={"arm_encoder_offset": -0.3, "cable_slack": 0.2})
+    physics = qube.make_physics(250.0, found.save(tmp_path / "slack.yaml"))
+
+    def settle(theta):
+        physics.reset_to([theta, np.pi, 0.0, 0.0])
+        for _ in range(1000):
+            physics.set_voltage(0.0)
+            physics.step(1)
+        return physics.true_state()[0]
+
+    assert settle(0.45) == pytest.approx(0.45, abs=1e-9)  # within 0.3 +- 0.2: slack, nothing pulls
+    assert settle(0.15) == pytest.approx(0.15, abs=1e-9)
+    assert settle(-0.4) > 0.0  # pulled towards the band
+    assert settle(1.0) < 0.7
+    assert physics.copy().model.tendon_stiffness[0] == 2e-3
+
+
 def test_the_shipped_real_qube_is_a_calibration_the_suite_simulates():
     from qube_suite import suite
     from qube_suite.devices.qube import parameters
@@ -221,3 +252,38 @@ def test_one_recording_with_current_is_fitted_with_it(tmp_path):
     found = calibration.calibrate_recordings([path])
     assert found.parameters["motor_resistance"] == pytest.approx(9.2, rel=0.03)
     assert found.parameters["pendulum_mass"] == pytest.approx(0.026, rel=0.05)
+
+
+def test_the_real_qube_preset_contains_the_calibrated_real_qube():
+    from qube_suite import randomization
+    from qube_suite.devices.qube import parameters
+
+    shipped = calibration.load(parameters.REAL_QUBE_SERVO2)
+    preset = randomization.load("real_qube")
+
+    def inside(distribution, value, nominal=1.0):
+        scale = nominal if distribution.relative else 1.0
+        return distribution.low * scale <= value <= distribution.high * scale
+
+    for name, value in shipped.parameters.items():
+        nominal = parameters.NOMINAL[name]
+        if name in preset.parameters:
+            assert inside(preset.parameters[name], value, nominal), name
+        else:
+            assert value == nominal, name  # what the preset leaves alone is the calibration's too
+    effects = preset.effects
+    period = 1.0 / 250.0
+    delay = effects["action_delay"]["seconds"]
+    assert delay.low <= shipped.actuation["latency_seconds"] <= delay.high - period  # 1.5 steps: 1, 2 drawn
+    assert inside(effects["dead_zone"]["voltage"], shipped.actuation["voltage_deadzone"])
+    cable = parameters.effects_of(shipped)
+    rest, slack = cable["cable_rest_angle"], cable.get("cable_slack", 0.0)
+    pull_at_zero = shipped.parameters["cable_stiffness"] * (np.clip(0.0, rest - slack, rest + slack) - 0.0)
+    gain = shipped.parameters["motor_torque_constant"] / shipped.parameters["motor_resistance"]
+    assert inside(effects["voltage_offset"]["voltage"], pull_at_zero / gain)
+    count = 2 * np.pi / parameters.ENCODER_COUNTS_PER_REVOLUTION
+    assert abs(shipped.offsets["pendulum_encoder_offset"]) < count
+    rotor = shipped.parameters["rotor_inertia"]
+    for name in ("sim2real", "wide"):  # the presets the shipped policies were trained with do not
+        assert not inside(randomization.load(name).parameters["rotor_inertia"], rotor,
+                          parameters.NOMINAL["rotor_inertia"])

@@ -241,3 +241,37 @@ def test_unknown_task_and_randomization_are_clear_errors():
         QubeVectorEnv("fly", 2)
     with pytest.raises(ValueError, match="randomization"):
         gymnasium.make_vec("QubeSuite/Swingup-v0", num_envs=2, randomization="default")
+
+
+def test_a_world_given_a_calibration_runs_like_a_single_env_made_with_it():
+    from qube_suite.calibration import calibration_file
+    from qube_suite.devices.qube import parameters
+
+    calibrated = parameters.REAL_QUBE_SERVO2
+    assert {"latency_seconds", "voltage_deadzone", "cable_rest_angle", "cable_slack",
+            "pendulum_encoder_offset"} <= set(parameters.effects_of(calibrated))
+    sources = [calibrated, None, calibration_file.load(calibrated)]
+    heavier = {"pendulum_mass": 0.03}  # then given to the last world by name: it keeps its effects
+
+    def calibrate(batch, world, random):
+        batch.set_parameters(world, sources[world])
+        if world == 2:
+            batch.set_parameters(world, heavier)
+
+    vector = gymnasium.make_vec("QubeSuite/Swingup-v0", num_envs=3, reset_hook=calibrate)
+    observations, _ = vector.reset(seed=SEEDS)
+    singles = [gymnasium.make("QubeSuite/Swingup-v0", domain_kwargs={"parameters": source})
+               for source in sources]
+    singles[2].unwrapped.physics.set_parameters(heavier)
+    expected = [env.reset(seed=seed)[0] for env, seed in zip(singles, SEEDS, strict=True)]
+    np.testing.assert_array_equal(observations, expected)
+    nominal = gymnasium.make("QubeSuite/Swingup-v0")
+    nominal.reset(seed=SEEDS[0])
+    rng = np.random.default_rng(1)
+    for _ in range(150):
+        actions = rng.uniform(-3.0, 3.0, (3, 1)).astype(np.float32)
+        observations, *_ = vector.step(actions)
+        expected = [env.step(action)[0] for env, action in zip(singles, actions, strict=True)]
+        np.testing.assert_array_equal(observations, expected)
+        uncalibrated = nominal.step(actions[0])[0]
+    assert np.abs(uncalibrated - observations[0]).max() > 0.01  # the calibration changes the Qube

@@ -15,7 +15,7 @@
       ...
     fixed: [rotor_inertia, arm_mass, ...]   # at nominal: not identifiable from this Qube's signals
     combinations: {arm_acceleration_per_ampere: 686.3, arm_axis_inertia: 6.12e-05}
-    offsets: {arm_torque_offset: ..., pendulum_encoder_offset: ..., arm_encoder_offset: ...}
+    offsets: {arm_torque_offset: ..., pendulum_encoder_offset: ..., arm_encoder_offset: ..., cable_slack: ...}
     latency_steps: 0                     # samples between a recorded voltage and its action
     actuation: {latency_seconds: 0.0052, voltage_deadzone: 0.06}   # recordings without current
     prediction: {horizon: 0.5, nominal_rms: 0.12, calibrated_rms: 0.015}   # held-out segments, rad
@@ -56,7 +56,8 @@ class Calibration:
     """Board type, board, identifier, date, recording, ..."""
     offsets: dict[str, float] = dataclasses.field(default_factory=dict)
     """arm_torque_offset (N m), pendulum_encoder_offset (rad), arm_encoder_offset (rad, or None
-    where the cable's stiffness is too small to tell)."""
+    where the cable's stiffness is too small to tell) and, from recordings without current,
+    cable_slack (rad): the half-width of the band around the cable's rest where it does not pull."""
     latency_steps: float = 0
     prediction: dict[str, float] = dataclasses.field(default_factory=dict)
     actuation: dict[str, float] = dataclasses.field(default_factory=dict)

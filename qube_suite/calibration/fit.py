@@ -364,7 +364,9 @@ def best_latency(measurements: Measurements, samples: np.ndarray | None = None) 
 # anchored by the pendulum's mass (weighed: Quanser's 24 g) rather than by the arm-axis inertia,
 # which on a real Qube includes the hub and the encoder disc and is fitted here as the rotor's.
 # The arm's viscous damping and the back-EMF both oppose theta' in proportion: only their sum is
-# identified, reported as a combination.
+# identified, reported as a combination. The encoder cable pulls towards its rest angle
+# (arm_torque_offset / cable_stiffness) only beyond a slack band of half-width cable_slack around it:
+# torque -kc (theta - clip(theta, rest - slack, rest + slack)), a linear spring when the slack is 0.
 
 VOLTAGE_ONLY: tuple[Fitted, ...] = (
     Fitted("motor_torque_constant", parameters.NOMINAL["motor_torque_constant"], "N m/A"),
@@ -376,6 +378,7 @@ VOLTAGE_ONLY: tuple[Fitted, ...] = (
     Fitted("pendulum_damping", 1.0e-6, "N m s/rad", 1.0e-6),
     Fitted("pendulum_friction", 1.0e-4, "N m", 1.5e-5),
     Fitted("voltage_deadzone", 0.1, "V", 0.01),
+    Fitted("cable_slack", 0.1, "rad", 0.05),  # searched on SLACK_GRID
 ) + OFFSETS
 """The unknowns of the voltage-only fit, in its order."""
 VOLTAGE_NAMES = tuple(q.name for q in VOLTAGE_ONLY)
@@ -389,6 +392,10 @@ VOLTAGE_UPPER = np.array([3.0 if name in ("motor_torque_constant", "pendulum_len
 the rotor's inertia and the friction-like ones within 0 and 100 times their scale."""
 LATENCY_STEP = 0.25
 """Resolution (samples) of the latency search of the voltage-only fit."""
+SLACK_STEP = 0.2
+SLACK_GRID = tuple(SLACK_STEP * k for k in range(5))
+"""Half-widths of the cable's slack band (rad) the voltage-only fit tries (then half a step either
+side of the best): its cost has local minima in the slack, which least squares would stop in."""
 
 
 def voltage_signals(measurements: Measurements, samples: np.ndarray | None = None) -> Signals:
@@ -436,8 +443,11 @@ def voltage_equations(x: np.ndarray, s: Signals, voltage: np.ndarray) -> tuple[n
     motor_torque = gain * (drive - kt * middle_speed)
     arm_momentum = (base + swing * sin * sin) * dth + m12 * dal
     pendulum_momentum = m12 * dth + m22 * dal
+    stiffness, slack = p["cable_stiffness"], p["cable_slack"]
+    rest = p["arm_torque_offset"] / np.maximum(stiffness, 1e-12)
+    slackening = stiffness * np.clip(th - rest, -slack, slack)
     arm_torque = (-p["arm_damping"] * dth - p["arm_friction"] * np.sign(dth)
-                  - p["cable_stiffness"] * th + p["arm_torque_offset"])
+                  - stiffness * th + p["arm_torque_offset"] + slackening)
     pendulum_torque = (swing * sin * cos * dth * dth + coupling * sin * dth * dal
                        + mp * parameters.NOMINAL["gravity"] * half * sin
                        - p["pendulum_damping"] * dal - p["pendulum_friction"] * np.sign(dal))
@@ -501,14 +511,15 @@ def _voltage_residual(x, signals_, voltages, latency, weights) -> np.ndarray:
 
 
 def fit_voltage(recordings: list[Measurements], samples: list[np.ndarray | None] | None = None,
-                latency: float | None = None, free: tuple[str, ...] | None = None) -> VoltageFitResult:
+                latency: float | None = None, free: tuple[str, ...] | None = None,
+                slack: float | None = None) -> VoltageFitResult:
     """Fit the voltage-only unknowns to several `recordings` at once, each on its sample indices
     `samples` (None: all).
 
     `latency` (samples, a fraction allowed): None searches 0 to MAX_LATENCY in steps of LATENCY_STEP.
     `free`: the unknowns fitted (None: all of `VOLTAGE_ONLY`); the others stay at their nominal value
     (0 for the friction-like ones and the offsets), which is how the benchmark measures what each
-    part of the model buys.
+    part of the model buys. `slack`: the cable's slack (rad; None: searched on `SLACK_GRID` if free).
     """
     samples = samples or [None] * len(recordings)
     signals_ = tuple(voltage_signals(m, chosen) for m, chosen in zip(recordings, samples, strict=True))
@@ -518,11 +529,15 @@ def fit_voltage(recordings: list[Measurements], samples: list[np.ndarray | None]
     if unknown:
         raise ValueError(f"unknown unknowns {sorted(unknown)}; valid: {', '.join(VOLTAGE_NAMES)}")
     mask = np.array([name in free for name in VOLTAGE_NAMES])
+    mask[VOLTAGE_NAMES.index("cable_slack")] = False  # searched on a grid, not by least squares
     start = np.array([1.0 if name in ("motor_torque_constant", "rotor_inertia", "pendulum_length") else 0.0
                       for name in VOLTAGE_NAMES])
+    slack_index = VOLTAGE_NAMES.index("cable_slack")
 
-    def solve(lat: float) -> tuple[np.ndarray, tuple[float, float], float]:
-        x = start.copy()
+    def solve(lat: float, slack: float = 0.0, x0: np.ndarray = start
+              ) -> tuple[np.ndarray, tuple[float, float], float]:
+        x = x0.copy()
+        x[slack_index] = slack / VOLTAGE_SCALES[slack_index]
         weights = (1e4, 1e5)
         for _ in range(2):
             def residual(z, w=weights):
@@ -546,5 +561,15 @@ def fit_voltage(recordings: list[Measurements], samples: list[np.ndarray | None]
                     best[3] + 2 * LATENCY_STEP):
             if 0.0 <= lat <= MAX_LATENCY:
                 best = min(best, solve(lat) + (lat,), key=lambda f: f[2])
+    if slack is not None:
+        best = solve(best[3], slack, best[0]) + (best[3],)
+    elif "cable_slack" in free:  # a grid (local minima), then half its step either side of the best
+        lat, linear = best[3], best[0]
+        for slack in SLACK_GRID[1:]:
+            best = min(best, solve(lat, slack, linear) + (lat,), key=lambda f: f[2])
+        chosen = best[0][slack_index] * VOLTAGE_SCALES[slack_index]
+        for slack in (chosen - 0.5 * SLACK_STEP, chosen + 0.5 * SLACK_STEP):
+            if slack > 0.0:
+                best = min(best, solve(lat, slack, linear) + (lat,), key=lambda f: f[2])
     x, weights, _, lat = best
     return VoltageFitResult(x=x, latency=float(lat), weights=weights, signals=signals_, voltages=voltages)

@@ -55,7 +55,7 @@ class Predictions:
 
 def predict(measurements: Measurements, parameters: Mapping[str, float], samples: np.ndarray,
             latency: float = 0, offsets: tuple[float, float] = (0.0, 0.0), horizon: float = HORIZON,
-            voltage_deadzone: float = 0.0, cable_rest_angle: float = 0.0,
+            voltage_deadzone: float = 0.0, cable_rest_angle: float = 0.0, cable_slack: float = 0.0,
             smoothed_start: bool = False) -> Predictions:
     """0.5 s-ahead rollouts of the simulated Qube with `parameters` (long names) from starts every
     `START_SPACING` within the sample indices `samples` (whose windows lie within them too).
@@ -65,9 +65,10 @@ def predict(measurements: Measurements, parameters: Mapping[str, float], samples
     speeds, which start from the lag-free filter's estimate), so a prediction uses no recorded
     angle after its start. `latency`: samples between a recorded voltage and its action (a fraction
     mixes neighbouring samples, `fit.delayed_voltage`); `offsets`: the encoders' offsets (rad), added
-    to the recorded angles; `horizon`: how far ahead (s); `voltage_deadzone` (V) and
-    `cable_rest_angle` (rad): the effects the simulation adds (`devices.qube.simulation.CalibratedActuation`
-    and the cable's rest angle). `smoothed_start`: start instead from the zero-phase filter's angles
+    to the recorded angles; `horizon`: how far ahead (s); `voltage_deadzone` (V),
+    `cable_rest_angle` and `cable_slack` (rad): the effects the simulation adds
+    (`devices.qube.simulation.CalibratedActuation`, `devices.qube.simulation.write_cable`). `smoothed_start`: start
+    instead from the zero-phase filter's angles
     and speeds at the start itself (which see half its window, 5 samples, past the start): the
     metric of `../shared/real_qube/README.md`, independent of the model.
     """
@@ -93,7 +94,7 @@ def predict(measurements: Measurements, parameters: Mapping[str, float], samples
     acting = np.sign(acting) * np.maximum(np.abs(acting) - voltage_deadzone, 0.0)
     voltages = np.stack([acting[j:j + total] for j in first])
     recorded = np.stack([angles[j:j + total + 1] for j in first])
-    with _Simulator(parameters, 1.0 / h, cable_rest_angle) as simulator:
+    with _Simulator(parameters, 1.0 / h, cable_rest_angle, cable_slack) as simulator:
         state = guess if smoothed_start else simulator.fit_initial_state(guess, voltages[:, :past],
                                                                           recorded[:, :past + 1])
         predicted = simulator.rollout(state, voltages)[:, past:]
@@ -105,10 +106,10 @@ class _Simulator:
     """Batched rollouts of the simulated Qube (`mujoco.rollout`), one physics step per sample or more."""
 
     def __init__(self, parameters: Mapping[str, float], control_frequency: float,
-                 cable_rest_angle: float = 0.0):
+                 cable_rest_angle: float = 0.0, cable_slack: float = 0.0):
         self._physics = qube.make_physics(control_frequency, parameters)
-        model = self._physics.model.ptr
-        model.qpos_spring[self._physics._ids.arm_qpos] = cable_rest_angle
+        cable = {"cable_rest_angle": cable_rest_angle, "cable_slack": cable_slack}
+        self._physics.set_calibrated_effects(cable, 1.0 / control_frequency)
         self._substeps = qube.substeps_per_control_period(control_frequency)
 
     def __enter__(self) -> _Simulator:

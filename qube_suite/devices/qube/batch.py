@@ -14,6 +14,10 @@ per world (`qube_suite.randomization.Chain`), restarted for just the worlds
 that start an episode. With a step-duration model each world's step is split
 into its own number of equal timesteps (at most `qube.MAX_TIMESTEP`), set in its
 own model, and the worlds taking the same number advance in one rollout call.
+
+A world given a calibration (`set_parameters(world, "my_qube.yaml")`) gets its effects too, as
+`qube.make_physics` gives them to one Qube: the latency and dead zone between command and motor,
+the cable's rest angle and slack and the pendulum encoder's offset (`parameters.effects_of`).
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from __future__ import annotations
 import copy
 import os
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import mujoco
 import mujoco.rollout
@@ -109,6 +114,7 @@ class QubeBatch:
         self._nominal_durations = np.full(num_worlds, self._substeps * template.opt.timestep)
         """Each world's control period as the physics steps cover it (s)."""
         self._sensor_model = self._actuator_model = self._step_duration_model = None
+        self._calibrated: CalibratedEffects | None = None
         self._measure()
 
     # -- the domain interface, one value per world ----------------------------------
@@ -159,6 +165,8 @@ class QubeBatch:
         step, its time advanced, and is marked in `physics_error`.
         """
         volts = self._voltage
+        if self._calibrated is not None:
+            volts = self._calibrated.actuate(volts)
         motor = volts if self._actuator_model is None else self._actuator_model(volts)
         if self._step_duration_model is None:
             self._control[:, :, 0] = motor[:, None]
@@ -185,6 +193,9 @@ class QubeBatch:
         row[self._dtheta], row[self._dalpha] = dtheta, dalpha
         self._voltage[world] = 0.0
         exact = wrap_angle(theta), wrap_angle(alpha), dtheta, dalpha
+        if self._calibrated is not None:
+            self._calibrated.restart(world)
+            exact = self._calibrated.read(np.array([exact]), np.array([world]))[0].tolist()
         if self._actuator_model is not None or self._sensor_model is not None:
             exact = self._restart_models(world, exact)
         measured = self._measured
@@ -194,7 +205,7 @@ class QubeBatch:
         """Measure `worlds` (indices) from their states again, restarting their sensor model."""
         if self._sensor_model is None:
             return  # the exact measurement is current: only `step` and `reset_world` move a world
-        measured = self._sensor_model.reset(self._exact(worlds), worlds)
+        measured = self._sensor_model.reset(self._read(self._exact(worlds), worlds), worlds)
         for column in range(4):
             self._measured[column][worlds] = measured[:, column]
 
@@ -213,7 +224,7 @@ class QubeBatch:
         if sensor_model is None:
             self._measure()
         else:
-            measured = sensor_model.reset(self._exact(self._worlds))
+            measured = sensor_model.reset(self._read(self._exact(self._worlds), self._worlds))
             self._measured = [measured[:, column] for column in range(4)]
 
     def set_actuator_model(self, actuator_model) -> None:
@@ -242,14 +253,32 @@ class QubeBatch:
         """Physical parameters of `world`, by long name (a copy)."""
         return dict(self._parameters[world])
 
-    def set_parameters(self, world: int, overrides: Mapping[str, float] | None = None) -> None:
-        """Set `world`'s parameters to the nominal ones updated by `overrides`, in place.
+    def set_parameters(self, world: int, overrides: Mapping[str, float] | Any = None) -> None:
+        """Set `world`'s parameters to the nominal ones updated by `overrides`, in place: by long
+        name (the world keeps any calibrated effects it has, as one simulated Qube does), or a
+        calibration or its file's path, whose effects replace the world's (`set_calibrated_effects`).
 
         Takes effect from the next `step`; the state is kept. Raises ValueError for an
         unknown name or an impossible value (the model is unchanged then).
         """
-        self._parameters[world] = qube.write_parameters(self._own_model(world), self._scratch, overrides,
-                                                        self._ids)
+        values = params.values_of(overrides)
+        model = self._own_model(world)
+        self._parameters[world] = qube.write_parameters(model, self._scratch, values, self._ids)
+        if overrides is not None and not isinstance(overrides, Mapping):
+            self.set_calibrated_effects(world, params.effects_of(overrides))
+        elif self._calibrated is not None:  # the cable's spring was rewritten: put its shape back
+            qube.write_cable(model, self._ids, self._parameters[world]["cable_stiffness"],
+                             *self._calibrated.cable(world))
+
+    def set_calibrated_effects(self, world: int, effects: Mapping[str, float]) -> None:
+        """Give `world` a calibration's effects (`parameters.effects_of`; empty: none), as
+        `qube.Physics.set_calibrated_effects` gives one Qube, and restart its command history."""
+        if self._calibrated is None:
+            self._calibrated = CalibratedEffects(self.num_worlds, self._nominal_durations[0])
+        self._calibrated.set(world, effects)
+        qube.write_cable(self._own_model(world), self._ids, self._parameters[world]["cable_stiffness"],
+                         *self._calibrated.cable(world))
+        self._measure()
 
     def close(self) -> None:
         """Stop the rollout threads."""
@@ -301,11 +330,80 @@ class QubeBatch:
         return np.concatenate([wrap_angle(state[:, self._angle_columns]), state[:, self._velocity_columns]],
                               axis=1)
 
+    def _read(self, exact: np.ndarray, worlds: np.ndarray) -> np.ndarray:
+        """What the encoders of `worlds` read in the `exact` states (len(worlds), 4): the calibrated
+        encoder offsets applied, where a world has them."""
+        return exact if self._calibrated is None else self._calibrated.read(exact, worlds)
+
     def _measure(self) -> None:
         angles = wrap_angle(self._state[:, self._angle_columns])
         velocities = self._state[:, self._velocity_columns]
-        if self._sensor_model is None:
+        if self._sensor_model is None and self._calibrated is None:
             self._measured = [angles[:, 0], angles[:, 1], velocities[:, 0], velocities[:, 1]]
         else:
-            measured = self._sensor_model(np.concatenate([angles, velocities], axis=1))
+            measured = self._read(np.concatenate([angles, velocities], axis=1), self._worlds)
+            if self._sensor_model is not None:
+                measured = self._sensor_model(measured)
             self._measured = [measured[:, column] for column in range(4)]
+
+
+class CalibratedEffects:
+    """The calibrated effects of each of `num_worlds` Qubes controlled every `control_period` s: the
+    array form of `qube.CalibratedActuation` (latency, a fraction of a period allowed, then dead
+    zone) and `qube.PendulumEncoderOffset`, and each world's cable (`qube.write_cable` puts it in
+    the world's model); worlds without a calibration unaffected."""
+
+    def __init__(self, num_worlds: int, control_period: float):
+        self.control_period = control_period
+        self.whole = np.zeros(num_worlds, dtype=np.intp)
+        self.fraction = np.zeros(num_worlds)
+        self.deadzone = np.zeros(num_worlds)
+        self.pendulum_offset = np.zeros(num_worlds)
+        self.cable_rest = np.zeros(num_worlds)
+        self.cable_slack = np.zeros(num_worlds)
+        self._history = np.zeros((num_worlds, 2))
+        """Commands of each world, oldest first; the last column is the latest."""
+
+    def set(self, world: int, effects: Mapping[str, float]) -> None:
+        """Give `world` the `effects` (`parameters.effects_of`; empty: none) and restart it at 0 V."""
+        latency = effects.get("latency_seconds", 0.0) / self.control_period
+        self.whole[world] = int(np.floor(latency))
+        self.fraction[world] = latency - self.whole[world]
+        self.deadzone[world] = effects.get("voltage_deadzone", 0.0)
+        self.pendulum_offset[world] = effects.get("pendulum_encoder_offset", 0.0)
+        self.cable_rest[world] = effects.get("cable_rest_angle", 0.0)
+        self.cable_slack[world] = effects.get("cable_slack", 0.0)
+        needed = int(self.whole.max()) + 2
+        if needed > self._history.shape[1]:
+            grown = np.zeros((len(self.whole), needed))
+            grown[:, -self._history.shape[1]:] = self._history
+            self._history = grown
+        self.restart(world)
+
+    def cable(self, world: int) -> tuple[float, float]:
+        """`world`'s cable: its rest angle and the half-width of its slack band (rad)."""
+        return float(self.cable_rest[world]), float(self.cable_slack[world])
+
+    def restart(self, world: int) -> None:
+        """Forget `world`'s earlier commands: 0 V until new ones are due."""
+        self._history[world] = 0.0
+
+    def actuate(self, volts: np.ndarray) -> np.ndarray:
+        """The voltages (num_worlds,) reaching the motors when `volts` are commanded now."""
+        history = self._history
+        history[:, :-1] = history[:, 1:]
+        history[:, -1] = volts
+        rows, last = np.arange(len(volts)), history.shape[1] - 1
+        mixed = ((1.0 - self.fraction) * history[rows, last - self.whole]
+                 + self.fraction * history[rows, last - 1 - self.whole])
+        return np.sign(mixed) * np.maximum(np.abs(mixed) - self.deadzone, 0.0)
+
+    def read(self, exact: np.ndarray, worlds: np.ndarray) -> np.ndarray:
+        """The encoders' reading of the `exact` states (len(worlds), 4) of `worlds`: the pendulum's
+        angle `pendulum_offset` low, wrapped."""
+        offsets = self.pendulum_offset[worlds]
+        if not offsets.any():
+            return exact
+        read = np.array(exact, dtype=float)
+        read[:, 1] = wrap_angle(read[:, 1] - offsets)
+        return read

@@ -123,7 +123,8 @@ def _check_nonpositive(name: str, value: float) -> None:
         raise ValueError(f"parameter {name!r} must be {'>= 0' if minimum_is_zero else '> 0'}, got {value}")
 
 
-CALIBRATED_EFFECTS = ("latency_seconds", "voltage_deadzone", "cable_rest_angle", "pendulum_encoder_offset")
+CALIBRATED_EFFECTS = ("latency_seconds", "voltage_deadzone", "cable_rest_angle", "cable_slack",
+                      "pendulum_encoder_offset")
 """What a calibration identifies beyond the parameters and a simulation reproduces (`effects_of`)."""
 
 
@@ -132,8 +133,10 @@ def effects_of(source: Mapping[str, float] | str | os.PathLike | Any | None) -> 
     those it identified only: the latency (s, a fraction of a sample allowed) and the voltage's dead
     zone (V) of its `actuation`, the cable's rest angle (rad, minus its `arm_encoder_offset`: the
     fit cannot tell a cable at rest off the encoder's zero from an encoder zeroed off the cable's
-    rest, and the simulation takes the former) and the pendulum encoder's offset (rad; true angle =
-    encoder angle + offset). A mapping of parameters has none."""
+    rest, and the simulation takes the former), the half-width of the band around that rest within
+    which the cable is slack (rad, its offsets' `cable_slack`; absent: a linear spring) and the
+    pendulum encoder's offset (rad; true angle = encoder angle + offset). A mapping of parameters has
+    none."""
     if source is None or isinstance(source, Mapping):
         return {}
     if isinstance(source, (str, os.PathLike)):
@@ -148,6 +151,8 @@ def effects_of(source: Mapping[str, float] | str | os.PathLike | Any | None) -> 
                if actuation.get(name)}
     if offsets.get("arm_encoder_offset") is not None:
         effects["cable_rest_angle"] = -float(offsets["arm_encoder_offset"])
+        if offsets.get("cable_slack"):
+            effects["cable_slack"] = float(offsets["cable_slack"])
     if offsets.get("pendulum_encoder_offset"):
         effects["pendulum_encoder_offset"] = float(offsets["pendulum_encoder_offset"])
     return effects

@@ -81,6 +81,7 @@ class Physics(MeasuredState, dm_mujoco.Physics):
     _parameters_written = False
     _calibrated_actuation = None
     _encoder_offsets = None
+    _cable = None
 
     # -- construction -------------------------------------------------------------
 
@@ -170,6 +171,8 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         """
         state = self._exact_state()
         self._parameters = write_parameters(self._model_ptr, self._data_ptr, overrides, self._ids)
+        if self._cable is not None:
+            write_cable(self._model_ptr, self._ids, self._parameters["cable_stiffness"], *self._cable)
         self._parameters_written = True
         self._set_state(state)
 
@@ -183,7 +186,8 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         latency, deadzone = effects.get("latency_seconds", 0.0), effects.get("voltage_deadzone", 0.0)
         self._calibrated_actuation = (CalibratedActuation(latency / period, deadzone)
                                       if latency or deadzone else None)
-        self._model_ptr.qpos_spring[self._arm_qpos] = effects.get("cable_rest_angle", 0.0)
+        self._cable = (effects.get("cable_rest_angle", 0.0), effects.get("cable_slack", 0.0))
+        write_cable(self._model_ptr, self._ids, self._parameters["cable_stiffness"], *self._cable)
         offset = effects.get("pendulum_encoder_offset", 0.0)
         self._encoder_offsets = None if not offset else PendulumEncoderOffset(offset)
         self._measure_afresh()
@@ -436,6 +440,7 @@ class ElementIds:
         self.arm_geom, self.pendulum_geom = find(geom, "arm"), find(geom, "pendulum")
         self.encoder_geom = find(geom, "pendulum_encoder")
         self.led_geom = find(geom, "led")
+        self.cable_tendon = find(mujoco.mjtObj.mjOBJ_TENDON, "cable")
         self.arm_qpos = int(model.jnt_qposadr[self.arm_joint])
         self.pendulum_qpos = int(model.jnt_qposadr[self.pendulum_joint])
         self.arm_dof = int(model.jnt_dofadr[self.arm_joint])
@@ -493,6 +498,21 @@ def write_parameters(model: mujoco.MjModel, data: mujoco.MjData,
 
     mujoco.mj_setConst(m, data)  # mass-dependent constants
     return p
+
+
+def write_cable(model: mujoco.MjModel, ids: ElementIds, stiffness: float, rest: float, slack: float) -> None:
+    """Make the encoder cable of `model` pull the arm towards `rest` (rad) with `stiffness` (N m/rad)
+    beyond a band of half-width `slack` (rad) around it, slack within: the arm joint's own spring when
+    `slack` is 0, else the tendon "cable" (`model.xml`), whose spring has that dead band."""
+    tendon = ids.cable_tendon
+    if slack > 0.0:
+        model.jnt_stiffness[ids.arm_joint] = 0.0
+        model.tendon_stiffness[tendon] = stiffness
+        model.tendon_lengthspring[tendon] = (rest - slack, rest + slack)
+    else:
+        model.jnt_stiffness[ids.arm_joint] = stiffness
+        model.tendon_stiffness[tendon] = 0.0
+    model.qpos_spring[ids.arm_qpos] = rest
 
 
 class ModelRecipe:
