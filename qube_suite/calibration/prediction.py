@@ -67,9 +67,9 @@ def predict(measurements: Measurements, parameters: Mapping[str, float], samples
     mixes neighbouring samples, `fit.delayed_voltage`); `offsets`: the encoders' offsets (rad), added
     to the recorded angles; `horizon`: how far ahead (s); `voltage_deadzone` (V),
     `cable_rest_angle` and `cable_slack` (rad): the effects the simulation adds
-    (`devices.qube.simulation.CalibratedActuation`, `devices.qube.simulation.write_cable`). `smoothed_start`: start
-    instead from the zero-phase filter's angles
-    and speeds at the start itself (which see half its window, 5 samples, past the start): the
+    (`devices.qube.simulation.CalibratedActuation`, `devices.qube.simulation.write_cable`).
+    `smoothed_start`: start instead from the zero-phase filter's angles and speeds at the start
+    itself (which see half its window, 5 samples, past the start): the
     metric of `../shared/real_qube/README.md`, independent of the model.
     """
     from qube_suite.calibration.fit import delayed_voltage
