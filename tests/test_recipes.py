@@ -77,7 +77,7 @@ def test_train_with_the_jax_backend_runs_its_recipe_and_refuses_options_it_canno
     refusal = "--backend jax takes --steps, --seed, --randomization of one run, not --algo"
     assert refusal in capsys.readouterr().err
     assert cli.main(["train", "--list-recipes", "--backend", "jax"]) == 0
-    assert "| swingup | swingup 200 M (sim2real)" in capsys.readouterr().out
+    assert "| swingup | swingup 60 M (sim2real_frictionless)" in capsys.readouterr().out
 
 
 def test_listing_shows_every_recipe_with_its_steps_and_time(capsys):

@@ -156,9 +156,10 @@ RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
 """Recipe name -> recipe; every shipped policy `ppo:<name>` has the recipe `<name>`."""
 
 JAX_RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
-    Recipe("swingup", (Stage("swingup", "swingup", 200_000_000, 5, randomization="sim2real", backend="jax"),),
-           "a swing-up that transfers: >= 90 % success on the held-out plants of benchmarks/held_out.py, "
-           "from scratch on one GPU (docs/gpu-training.md)"),
+    Recipe("swingup", (Stage("swingup", "swingup", 60_000_000, 2, randomization="sim2real_frictionless",
+                             backend="jax"),),
+           "1838 in simulation, 1866 on the substitute, 100 % success; 92 s on one H200 "
+           "(docs/gpu-training.md)"),
 )}
 """The recipes of the JAX backend (`qube-suite train --task T --backend jax`), by name."""
 
