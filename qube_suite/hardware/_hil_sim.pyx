@@ -88,8 +88,8 @@ import time
 
 import numpy as np
 
-from libc.math cimport cos, exp, fabs, floor, log, sin, sqrt
-from libc.stdlib cimport free, malloc
+from libc.math cimport cos, exp, fabs, floor, isfinite, log, sin, sqrt
+from libc.stdlib cimport free, llabs, malloc
 
 from qube_suite.angles import wrap_angle
 from qube_suite.hardware import conventions
@@ -377,8 +377,24 @@ cdef void _coulomb_friction(const Params* p, double* x, const double* x_start, d
         x[1] = x_start[1]
 
 
-cdef void _substep(const Params* p, Plant* s, double applied, bint on, double h) noexcept nogil:
-    """Advance the plant by h with the amplifier applying `applied` volts (board sign) if `on`."""
+cdef struct Sway:
+    double h            # the substep (s) that the factors below are for
+    double decay        # exp(-h / vibration_time)
+    double scale        # vibration * sqrt(1 - decay^2) (N m)
+
+
+cdef void _sway_factors(const Params* p, Sway* sway, double h) noexcept nogil:
+    """The exact discretisation of the Gauss-Markov sway over a substep h (computed once per h)."""
+    sway.h = h
+    if p.vibration > 0.0:
+        sway.decay = exp(-h / p.vibration_time)
+        sway.scale = p.vibration * sqrt(1.0 - sway.decay * sway.decay)
+
+
+cdef void _substep(const Params* p, Plant* s, const Sway* sway, double applied, bint on,
+                   double h) noexcept nogil:
+    """Advance the plant by h with the amplifier applying `applied` volts (board sign) if `on`;
+    `sway` holds the sway's factors for h."""
     cdef double k1[5]
     cdef double k2[5]
     cdef double k3[5]
@@ -386,13 +402,11 @@ cdef void _substep(const Params* p, Plant* s, double applied, bint on, double h)
     cdef double y[5]
     cdef double start[5]
     cdef double v = ARM_SIGN * applied
-    cdef double decay
     cdef int j
     for j in range(5):
         start[j] = s.x[j]
     if p.vibration > 0.0:           # exact discretisation of the Gauss-Markov sway over h
-        decay = exp(-h / p.vibration_time)
-        s.sway = decay * s.sway + p.vibration * sqrt(1.0 - decay * decay) * _normal(&s.random_state)
+        s.sway = sway.decay * s.sway + sway.scale * _normal(&s.random_state)
     else:
         s.sway = 0.0
     _derivative(p, s.x, v, on, s.sway, k1)
@@ -460,6 +474,7 @@ cdef class HIL:
     cdef Outputs out
     cdef Watchdog wd
     cdef Sampler smp
+    cdef Sway sway
     cdef int encoder_offset[2]
     cdef double h_idle, h
     cdef double wall_origin
@@ -700,45 +715,13 @@ cdef class HIL:
 
         Returns 0 once a finite task has delivered all its samples.
         """
-        cdef long n = num_samples, j, c, k
-        cdef Sample* sample
+        cdef long n = num_samples
         _check_buffer(_length_d(analog_buffer), n * task.n_analog, "analog")
         _check_buffer(_length_i(encoder_buffer), n * task.n_encoder, "encoder")
         _check_buffer(_length_b(digital_buffer), n * task.n_digital, "digital")
         _check_buffer(_length_d(other_buffer), n * task.n_other, "other")
         with self.lock:
-            self._require_task(task)
-            if task is not self.running_task:
-                raise HILError(INVALID_TASK, "the task is not running")
-            if self.read_failure is not None:
-                if self.reads_before_failure == 0:
-                    failure, self.read_failure = self.read_failure, None
-                    raise failure
-                self.reads_before_failure -= 1
-            if n <= 0 or n > self.smp.capacity:
-                raise HILError(TOO_MANY_SAMPLES, f"can read 1 to {self.smp.capacity} samples, not {n}")
-            if not self._wait_for_samples(n):
-                return 0
-            self._require_finite()
-            if self.smp.overflow_pending:
-                self.smp.overflow_pending = False
-                raise HILError(BUFFER_OVERFLOW, "the task buffer overflowed: samples were not read in time")
-            for k in range(n):
-                sample = &self.smp.ring[self.smp.head]
-                for j in range(task.n_analog):
-                    analog_buffer[k * task.n_analog + j] = sample.current
-                for j in range(task.n_encoder):
-                    c = task.encoder[j]
-                    encoder_buffer[k * task.n_encoder + j] = sample.encoder[c]
-                for j in range(task.n_digital):
-                    c = task.digital[j]
-                    digital_buffer[k * task.n_digital + j] = sample.digital[c]
-                for j in range(task.n_other):
-                    other_buffer[k * task.n_other + j] = (
-                        sample.tachometer if task.other[j] == OTHER_TACHOMETER else sample.pendulum_tachometer)
-                self.smp.head = (self.smp.head + 1) % self.smp.capacity
-                self.smp.count -= 1
-        return n
+            return self._read_task(task, n, analog_buffer, encoder_buffer, digital_buffer, other_buffer)
 
     def task_read_encoder(self, Task task not None, num_samples, int[::1] buffer):
         """`task_read` of an encoder reader task."""
@@ -972,6 +955,7 @@ cdef class HIL:
         self.p.v_limit, self.p.i_limit = values["amplifier_voltage_limit"], values["current_limit"]
         self.p.stall_v, self.p.stall_w, self.p.stall_t = (values["stall_voltage"], values["stall_speed"],
                                                           values["stall_time"])
+        self.sway.h = -1.0                                  # the sway's factors are computed afresh
         return 0
 
     cdef inline bint _amplifier_on(self) noexcept nogil:
@@ -999,6 +983,45 @@ cdef class HIL:
         sample.digital[_STALL_ERROR] = self.s.stall_error
         sample.tachometer = ARM_SIGN * self.s.x[2] * COUNTS_PER_RADIAN
         sample.pendulum_tachometer = PENDULUM_SIGN * self.s.x[3] * COUNTS_PER_RADIAN
+
+    cdef long _read_task(self, Task task, long n, double[::1] analog_buffer, int[::1] encoder_buffer,
+                         signed char[::1] digital_buffer, double[::1] other_buffer) except -1:
+        """`task_read`'s work, the lock held and the buffers checked: the samples read (0: the task
+        has delivered all its samples)."""
+        cdef long j, c, k
+        cdef Sample* sample
+        self._require_task(task)
+        if task is not self.running_task:
+            raise HILError(INVALID_TASK, "the task is not running")
+        if self.read_failure is not None:
+            if self.reads_before_failure == 0:
+                failure, self.read_failure = self.read_failure, None
+                raise failure
+            self.reads_before_failure -= 1
+        if n <= 0 or n > self.smp.capacity:
+            raise HILError(TOO_MANY_SAMPLES, f"can read 1 to {self.smp.capacity} samples, not {n}")
+        if not self._wait_for_samples(n):
+            return 0
+        self._require_finite()
+        if self.smp.overflow_pending:
+            self.smp.overflow_pending = False
+            raise HILError(BUFFER_OVERFLOW, "the task buffer overflowed: samples were not read in time")
+        for k in range(n):
+            sample = &self.smp.ring[self.smp.head]
+            for j in range(task.n_analog):
+                analog_buffer[k * task.n_analog + j] = sample.current
+            for j in range(task.n_encoder):
+                c = task.encoder[j]
+                encoder_buffer[k * task.n_encoder + j] = sample.encoder[c]
+            for j in range(task.n_digital):
+                c = task.digital[j]
+                digital_buffer[k * task.n_digital + j] = sample.digital[c]
+            for j in range(task.n_other):
+                other_buffer[k * task.n_other + j] = (
+                    sample.tachometer if task.other[j] == OTHER_TACHOMETER else sample.pendulum_tachometer)
+            self.smp.head = (self.smp.head + 1) % self.smp.capacity
+            self.smp.count -= 1
+        return n
 
     cdef Sample _read_now(self) except *:
         """The present sample of an open board (the immediate reads)."""
@@ -1031,11 +1054,13 @@ cdef class HIL:
     cdef void _advance(self, long substeps) noexcept nogil:
         """Integrate `substeps` substeps, expiring the watchdog and taking samples when due."""
         cdef long k
+        if self.sway.h != self.h:
+            _sway_factors(&self.p, &self.sway, self.h)
         for k in range(substeps):
             if self.s.diverged:
                 self.s.t += self.h
             else:
-                _substep(&self.p, &self.s, self._applied(), self._amplifier_on(), self.h)
+                _substep(&self.p, &self.s, &self.sway, self._applied(), self._amplifier_on(), self.h)
                 if not (fabs(self.s.x[2]) <= _DIVERGENCE_SPEED and fabs(self.s.x[3]) <= _DIVERGENCE_SPEED
                         and fabs(self.s.x[0]) <= 1e6 and fabs(self.s.x[1]) <= 1e6 and fabs(self.s.x[4]) <= 1e6):
                     self.s.diverged = True
@@ -1124,6 +1149,97 @@ cdef class HIL:
         if task.deleted or task.board is not self:
             raise HILError(INVALID_TASK, "not a task of this board")
         return 0
+
+
+cdef class ClearSamples:
+    """A safety wrapper's samples on this board in fast mode, one call each, for the samples in
+    which none of its checks could stop the motor (the wrapper: `quanser.QuanserWrapper`).
+
+    ClearSamples(board, task, currents, encoders, digitals, others, volts, jump_limit, arm_at,
+    arm_scale, arm_limit) binds the wrapper's buffers: the task's readings, and `volts`, the
+    voltage for analog output 0 (V, board sign, finite). `sample(led, overflows_seen,
+    last_counts)` does what `task_read(task, 1, ...)`, `watchdog_reload()` and
+    `task_get_buffer_overflows(task)` do, in that order; then, if the sample is clear, what
+    `write_analog` of analog output 0 and, unless `led` is None, `write_other` of the LED
+    (other outputs 11000-11002, `led` three values in [0, 1]) do, and returns None. A sample is
+    clear if the watchdog reloaded, the overflow count is `overflows_seen` (no sample missed;
+    None: unknown), no digital input is set (amplifier fault, stall warning, stall error), no
+    encoder count moved by more than `jump_limit` counts from `last_counts` (a list, one per
+    encoder; None: unknown), the arm encoder's count (`arm_at`, -1: none) times `arm_scale`
+    (rad per count) is within `arm_limit` (rad) of zero, and the board takes writes. Otherwise
+    nothing is written and it returns (watchdog reloaded, buffer overflows) for the wrapper's
+    own checks. Errors of the read raise as from `task_read`.
+    """
+
+    cdef HIL board
+    cdef Task task
+    cdef double[::1] currents
+    cdef int[::1] encoders
+    cdef signed char[::1] digitals
+    cdef double[::1] others
+    cdef double[::1] volts
+    cdef double jump_limit, arm_scale, arm_limit
+    cdef int arm_at
+
+    def __init__(self, HIL board not None, Task task not None, double[::1] currents, int[::1] encoders,
+                 signed char[::1] digitals, double[::1] others, double[::1] volts, double jump_limit,
+                 int arm_at, double arm_scale, double arm_limit):
+        _check_buffer(_length_d(currents), task.n_analog, "analog")
+        _check_buffer(_length_i(encoders), task.n_encoder, "encoder")
+        _check_buffer(_length_b(digitals), task.n_digital, "digital")
+        _check_buffer(_length_d(others), task.n_other, "other")
+        _check_buffer(_length_d(volts), 1, "analog output")
+        if not -1 <= arm_at < task.n_encoder:
+            raise ValueError(f"arm_at must be -1 or an encoder's place in the task, got {arm_at}")
+        self.board, self.task = board, task
+        self.currents, self.encoders, self.digitals, self.others = currents, encoders, digitals, others
+        self.volts = volts
+        self.jump_limit, self.arm_at, self.arm_scale, self.arm_limit = jump_limit, arm_at, arm_scale, arm_limit
+
+    def sample(self, led, overflows_seen, list last_counts):
+        """One sample: None if it was clear and written, else (watchdog reloaded, buffer overflows)."""
+        cdef HIL b = self.board
+        cdef const double[::1] rgb
+        cdef bint reloaded, clear
+        cdef long long overflows, now, before
+        cdef long j
+        cdef double value
+        if led is not None:
+            rgb = led
+            _check_buffer(_length_cd(rgb), 3, "other output")
+        with b.lock:
+            b._read_task(self.task, 1, self.currents, self.encoders, self.digitals, self.others)
+            b._require_open()                                   # watchdog_reload
+            b._sync()
+            reloaded = not b.wd.expired
+            if reloaded:
+                b.wd.deadline = b.s.t + b.wd.timeout
+            b._require_task(self.task)                          # task_get_buffer_overflows
+            overflows = b.smp.overflows if self.task is b.running_task else 0
+            clear = (reloaded and overflows_seen is not None and overflows == overflows_seen
+                     and last_counts is not None and len(last_counts) == self.task.n_encoder)
+            j = 0
+            while clear and j < self.task.n_digital:
+                clear = self.digitals[j] == 0
+                j += 1
+            j = 0
+            while clear and j < self.task.n_encoder:
+                now, before = self.encoders[j], last_counts[j]
+                clear = not (<double>llabs(now - before) > self.jump_limit)
+                j += 1
+            if clear and self.arm_at >= 0:
+                clear = fabs(self.arm_scale * <double>self.encoders[self.arm_at]) <= self.arm_limit
+            if clear:                                           # write_analog, write_other
+                b._sync()
+                clear = not b.wd.expired and isfinite(self.volts[0])
+            if not clear:
+                return reloaded, overflows
+            b.out.analog = self.volts[0]
+            if led is not None:
+                for j in range(3):
+                    value = 0.0 if 0.0 > rgb[j] else rgb[j]     # Python's min(max(value, 0.0), 1.0)
+                    b.out.led[j] = 1.0 if 1.0 < value else value
+        return None
 
 
 cdef list _channels(channels, num_channels, Py_ssize_t buffer_length, str kind, tuple valid):

@@ -403,6 +403,7 @@ class QuanserWrapper:
         self._held_samples = 0  # samples in a row of return_arm() beyond the limit above RETURN_CURRENT
         self._last_counts: list[int] | None = None  # encoder counts of the last sample, for the glitch check
         self._board_error: type[Exception] = Exception  # the board's HILError class, set at open()
+        self._clear_samples: Any = None  # the substitute's compiled sample call, set at open()
         self._handle = _Handle(self._channels)
         # Garbage collection and interpreter exit leave the board safe too (the handle, not `self`).
         self._finalizer = weakref.finalize(self, self._handle.shut)
@@ -459,6 +460,7 @@ class QuanserWrapper:
                 "it open") from error
         handle = self._handle
         handle.board, handle.task, handle.open, self._idle = board, None, True, False
+        self._clear_samples = None
         TERMINATION_UNWINDS.hold(handle)
         self.missed_samples, self.stall_warning, self._overflows_seen = 0, False, None
         self._last_counts = None
@@ -496,12 +498,31 @@ class QuanserWrapper:
                                 np.ones(len(c["digital_outputs"]), dtype=np.int8))
             self._overflows_seen = None
             board.watchdog_start(self.watchdog_timeout)
+            self._clear_samples = self._compiled_samples(hil_class, board)
         except BaseException as error:
             self.close()
             if isinstance(error, self._board_error):
                 raise BoardIOError(
                     f"could not set up the {self.device.board_type} board: {error_text(error)}") from error
             raise
+
+    def _compiled_samples(self, hil_class: Any, board: Any) -> Any:
+        """The substitute's `ClearSamples` for this wrapper's samples in fast mode (the substitute
+        itself, its channels as the device declares them), else None: every sample then goes
+        through the board calls and checks of `_act` one by one."""
+        from qube_suite.hardware import _hil_sim
+
+        d = self.device
+        if (hil_class is not _hil_sim.HIL or type(board) is not _hil_sim.HIL or self.realtime
+                or d.analog_outputs != (0,) or d.led_outputs != _hil_sim.OTHER_LED):
+            return None
+        jump_limit = (math.inf if self.max_encoder_speed is None  # `_check_encoders`' limit, no sample missed
+                      else self.max_encoder_speed * 1 / self.frequency / conventions.RADIANS_PER_COUNT + 1)
+        arm_checked = self.arm_limit is not None and self._arm_at is not None
+        return _hil_sim.ClearSamples(
+            board, self._task, self._currents, self._encoders, self._digitals, self._others, self._volts,
+            jump_limit, self._arm_at if arm_checked else -1,
+            conventions.ARM_SIGN * conventions.RADIANS_PER_COUNT, self.arm_limit if arm_checked else math.inf)
 
     def _at_rest(self, board: Any) -> bool:
         """True if no encoder count moved by more than one from where it was over `REST_CHECK_TIME`
@@ -554,14 +575,21 @@ class QuanserWrapper:
         volts = self._checked_voltages(voltages)
         rgb = None if led is None else self._checked_led(led)
         try:
-            board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
+            if self._clear_samples is None:
+                board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
+                reloaded, overflows = None, None  # asked below
+            else:  # read, reload and, where no check below could stop, write in one compiled call
+                outcome = self._clear_samples.sample(rgb, self._overflows_seen, self._last_counts)
+                if outcome is None:
+                    return self._after_clear_sample()
+                reloaded, overflows = outcome
         except self._board_error as error:
             self._stop(BoardIOError(f"the board could not deliver a sample: {error_text(error)}"), error)
-        if not board.watchdog_reload():
+        if not (board.watchdog_reload() if reloaded is None else reloaded):
             self._stop(WatchdogExpiredError(
                 f"the watchdog expired: no action for {self.watchdog_timeout} s, so the board zeroed its "
                 "outputs; resume() drives again"))
-        missed = self._check_missed_samples(board)
+        missed = self._check_missed_samples(board, overflows)
         self._check_amplifier()
         self._check_encoders(missed)
         self._check_arm(volts[0], returning)
@@ -576,6 +604,16 @@ class QuanserWrapper:
                     f"{self.watchdog_timeout} s), so the board zeroed its outputs; resume() drives again"),
                     error)
             self._stop(BoardIOError(f"the board refused the voltage: {error_text(error)}"), error)
+        return self._currents.copy(), self._encoders.copy(), self._others.copy()
+
+    def _after_clear_sample(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What the checks of `_act` leave after a sample that `ClearSamples` found clear and wrote:
+        no sample missed, no flag set, the counts kept for the next glitch check, the arm within
+        its limit; `_act`'s readings."""
+        self.stall_warning = False
+        self._last_counts = self._encoders.tolist()
+        if self.arm_limit is not None and self._arm_at is not None:
+            self._return_from, self._held_samples = None, 0
         return self._currents.copy(), self._encoders.copy(), self._others.copy()
 
     def idle(self) -> None:
@@ -707,9 +745,11 @@ class QuanserWrapper:
             self._refuse(f"led must be {len(self.device.led_outputs)} numbers in [0, 1], got {led!r}")
         return rgb
 
-    def _check_missed_samples(self, board) -> int:
-        """Count the samples missed since the last action (returned) and stop if too many."""
-        overflows = board.task_get_buffer_overflows(self._task)
+    def _check_missed_samples(self, board, overflows: int | None = None) -> int:
+        """Count the samples missed since the last action (returned) and stop if too many; `overflows`:
+        the board's overflow count, if already asked."""
+        if overflows is None:
+            overflows = board.task_get_buffer_overflows(self._task)
         missed = 0 if self._overflows_seen is None else overflows - self._overflows_seen
         self._overflows_seen = overflows
         self.missed_samples += missed
