@@ -578,8 +578,7 @@ class Physics(BoardClockAndLed, MeasuredState, control.Physics):
         self._led_shown = self._led  # written only when it changes: one board call less per sample
         limit = self.qube.max_voltage
         self._applied = -limit if volts < -limit else limit if volts > limit else volts
-        theta, alpha, dtheta, dalpha = self._estimator(self.encoders).tolist()
-        self._estimate = (theta, alpha, dtheta, dalpha)
+        self._estimate = self._estimator.estimate(self.encoders)
         self._samples += 1
 
     def _return_arm(self) -> None:

@@ -1161,7 +1161,8 @@ cdef class ClearSamples:
     last_counts)` does what `task_read(task, 1, ...)`, `watchdog_reload()` and
     `task_get_buffer_overflows(task)` do, in that order; then, if the sample is clear, what
     `write_analog` of analog output 0 and, unless `led` is None, `write_other` of the LED
-    (other outputs 11000-11002, `led` three values in [0, 1]) do, and returns None. A sample is
+    (other outputs 11000-11002, `led` three values in [0, 1], a tuple or an array) do, and returns
+    None. A sample is
     clear if the watchdog reloaded, the overflow count is `overflows_seen` (no sample missed;
     None: unknown), no digital input is set (amplifier fault, stall warning, stall error), no
     encoder count moved by more than `jump_limit` counts from `last_counts` (a list, one per
@@ -1204,9 +1205,15 @@ cdef class ClearSamples:
         cdef long long overflows, now, before
         cdef long j
         cdef double value
-        if led is not None:
+        cdef double colour[3]
+        if type(led) is tuple:
+            if len(led) != 3:
+                raise ValueError(f"led must hold 3 values, got {led!r}")
+            colour[0], colour[1], colour[2] = led
+        elif led is not None:
             rgb = led
             _check_buffer(_length_cd(rgb), 3, "other output")
+            colour[0], colour[1], colour[2] = rgb[0], rgb[1], rgb[2]
         with b.lock:
             b._read_task(self.task, 1, self.currents, self.encoders, self.digitals, self.others)
             b._require_open()                                   # watchdog_reload
@@ -1237,7 +1244,7 @@ cdef class ClearSamples:
             b.out.analog = self.volts[0]
             if led is not None:
                 for j in range(3):
-                    value = 0.0 if 0.0 > rgb[j] else rgb[j]     # Python's min(max(value, 0.0), 1.0)
+                    value = 0.0 if 0.0 > colour[j] else colour[j]   # Python's min(max(value, 0.0), 1.0)
                     b.out.led[j] = 1.0 if 1.0 < value else value
         return None
 

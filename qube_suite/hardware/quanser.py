@@ -596,6 +596,9 @@ class QuanserWrapper:
         try:
             board.write_analog(self._channels["analog_outputs"], len(volts), volts)
             if rgb is not None:
+                if type(rgb) is tuple:
+                    self._rgb[:] = rgb
+                    rgb = self._rgb
                 board.write_other(self._channels["led_outputs"], len(rgb), rgb)
         except self._board_error as error:
             if board.watchdog_is_expired():  # it expired after the reload (the process was held up)
@@ -705,10 +708,11 @@ class QuanserWrapper:
 
     def _checked_voltages(self, voltages) -> np.ndarray:
         n = len(self._volts)
-        if type(voltages) is float and n == 1:
-            return self._clipped([voltages], voltages)  # the common cases, without building an array
-        if type(voltages) is list and len(voltages) == n and all(type(v) is float for v in voltages):
+        if type(voltages) is list and len(voltages) == n and (  # the common cases, without building an array
+                type(voltages[0]) is float if n == 1 else all(type(v) is float for v in voltages)):
             return self._clipped(voltages, voltages)
+        if type(voltages) is float and n == 1:
+            return self._clipped([voltages], voltages)
         try:
             values = np.asarray(voltages)
         except (TypeError, ValueError):
@@ -731,11 +735,13 @@ class QuanserWrapper:
             self._volts[j] = -limit if value < -limit else limit if value > limit else value
         return self._volts
 
-    def _checked_led(self, led) -> np.ndarray:
+    def _checked_led(self, led) -> tuple[float, ...] | np.ndarray:
+        """`led` itself if it is a tuple of floats in [0, 1] (the common case, without building an
+        array), else an array of its values; refused (0 V, ValueError) unless one number in [0, 1]
+        for each LED output."""
         if (type(led) is tuple and len(led) == len(self._rgb)
-                and all(type(x) is float and 0.0 <= x <= 1.0 for x in led)):  # NaN fails the comparison
-            self._rgb[:] = led  # the common case, without building and scanning arrays
-            return self._rgb
+                and all([type(x) is float and 0.0 <= x <= 1.0 for x in led])):  # NaN fails the comparison
+            return led
         try:
             rgb = np.asarray(led, dtype=np.float64)
         except (TypeError, ValueError):
