@@ -377,24 +377,8 @@ cdef void _coulomb_friction(const Params* p, double* x, const double* x_start, d
         x[1] = x_start[1]
 
 
-cdef struct Sway:
-    double h            # the substep (s) that the factors below are for
-    double decay        # exp(-h / vibration_time)
-    double scale        # vibration * sqrt(1 - decay^2) (N m)
-
-
-cdef void _sway_factors(const Params* p, Sway* sway, double h) noexcept nogil:
-    """The exact discretisation of the Gauss-Markov sway over a substep h (computed once per h)."""
-    sway.h = h
-    if p.vibration > 0.0:
-        sway.decay = exp(-h / p.vibration_time)
-        sway.scale = p.vibration * sqrt(1.0 - sway.decay * sway.decay)
-
-
-cdef void _substep(const Params* p, Plant* s, const Sway* sway, double applied, bint on,
-                   double h) noexcept nogil:
-    """Advance the plant by h with the amplifier applying `applied` volts (board sign) if `on`;
-    `sway` holds the sway's factors for h."""
+cdef void _substep(const Params* p, Plant* s, double applied, bint on, double h) noexcept nogil:
+    """Advance the plant by h with the amplifier applying `applied` volts (board sign) if `on`."""
     cdef double k1[5]
     cdef double k2[5]
     cdef double k3[5]
@@ -402,11 +386,13 @@ cdef void _substep(const Params* p, Plant* s, const Sway* sway, double applied, 
     cdef double y[5]
     cdef double start[5]
     cdef double v = ARM_SIGN * applied
+    cdef double decay
     cdef int j
     for j in range(5):
         start[j] = s.x[j]
     if p.vibration > 0.0:           # exact discretisation of the Gauss-Markov sway over h
-        s.sway = sway.decay * s.sway + sway.scale * _normal(&s.random_state)
+        decay = exp(-h / p.vibration_time)
+        s.sway = decay * s.sway + p.vibration * sqrt(1.0 - decay * decay) * _normal(&s.random_state)
     else:
         s.sway = 0.0
     _derivative(p, s.x, v, on, s.sway, k1)
@@ -474,7 +460,6 @@ cdef class HIL:
     cdef Outputs out
     cdef Watchdog wd
     cdef Sampler smp
-    cdef Sway sway
     cdef int encoder_offset[2]
     cdef double h_idle, h
     cdef double wall_origin
@@ -595,12 +580,13 @@ cdef class HIL:
     def write_analog(self, channels, num_channels, const double[::1] buffer):
         """Set the motor voltage (V); the amplifier applies it within its limit while enabled."""
         cdef list chans = _channels(channels, num_channels, _length_cd(buffer), "analog output", (0,))
-        for j in range(len(chans)):
-            if not math.isfinite(buffer[j]):
+        cdef Py_ssize_t j, n = len(chans)
+        for j in range(n):
+            if not isfinite(buffer[j]):
                 raise HILError(INVALID_ARGUMENT, f"analog output value {buffer[j]} is not finite")
         with self.lock:
             self._require_writable()
-            for j in range(len(chans)):
+            for j in range(n):
                 self.out.analog = buffer[j]
 
     def write_digital(self, channels, num_channels, const signed char[::1] buffer):
@@ -725,7 +711,13 @@ cdef class HIL:
 
     def task_read_encoder(self, Task task not None, num_samples, int[::1] buffer):
         """`task_read` of an encoder reader task."""
-        return self.task_read(task, num_samples, None, buffer, None, None)
+        cdef long n = num_samples
+        _check_buffer(-1, n * task.n_analog, "analog")          # no buffers for the task's other inputs
+        _check_buffer(_length_i(buffer), n * task.n_encoder, "encoder")
+        _check_buffer(-1, n * task.n_digital, "digital")
+        _check_buffer(-1, n * task.n_other, "other")
+        with self.lock:
+            return self._read_task(task, n, None, buffer, None, None)
 
     def task_get_buffer_overflows(self, Task task not None):
         """Samples lost (overwritten or discarded) because the task buffer was full."""
@@ -955,7 +947,6 @@ cdef class HIL:
         self.p.v_limit, self.p.i_limit = values["amplifier_voltage_limit"], values["current_limit"]
         self.p.stall_v, self.p.stall_w, self.p.stall_t = (values["stall_voltage"], values["stall_speed"],
                                                           values["stall_time"])
-        self.sway.h = -1.0                                  # the sway's factors are computed afresh
         return 0
 
     cdef inline bint _amplifier_on(self) noexcept nogil:
@@ -1054,13 +1045,11 @@ cdef class HIL:
     cdef void _advance(self, long substeps) noexcept nogil:
         """Integrate `substeps` substeps, expiring the watchdog and taking samples when due."""
         cdef long k
-        if self.sway.h != self.h:
-            _sway_factors(&self.p, &self.sway, self.h)
         for k in range(substeps):
             if self.s.diverged:
                 self.s.t += self.h
             else:
-                _substep(&self.p, &self.s, &self.sway, self._applied(), self._amplifier_on(), self.h)
+                _substep(&self.p, &self.s, self._applied(), self._amplifier_on(), self.h)
                 if not (fabs(self.s.x[2]) <= _DIVERGENCE_SPEED and fabs(self.s.x[3]) <= _DIVERGENCE_SPEED
                         and fabs(self.s.x[0]) <= 1e6 and fabs(self.s.x[1]) <= 1e6 and fabs(self.s.x[4]) <= 1e6):
                     self.s.diverged = True

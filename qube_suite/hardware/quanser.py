@@ -680,9 +680,10 @@ class QuanserWrapper:
     # -- safety ----------------------------------------------------------------------------
 
     def _require_open(self) -> Any:
-        if not self._open:
+        handle = self._handle
+        if not handle.open:
             raise RuntimeError("the board is not open: use `with QubeServo2(...) as qube:` or call open()")
-        return self._board
+        return handle.board
 
     def zero_voltage(self) -> None:
         """Write 0 V now (the amplifier stays enabled, the watchdog running: the next `action` drives
