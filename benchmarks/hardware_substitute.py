@@ -7,7 +7,9 @@ turns the arm far), next to the bare board's `task_read` and `write_analog` (the
 plant's integration, at >= 10 kHz, with the least Python around it).
 Through the environment: `env.step` of `suite.load("qube_hardware", "swingup")` (250 Hz)
 with a constant 0.1 V, the step that calibration, training and the held-out studies
-run, episode resets excluded.
+run, episode resets excluded; next to it the same step with the wrapper's compiled
+samples (`_hil_sim.ClearSamples`) turned off, every sample going through the board
+calls and checks one by one, as on a real board.
 Real-time mode: the period between successive `action` returns at 250 Hz for 5 s,
 as median, 99th percentile and maximum, with the samples the board counted as
 missed.
@@ -59,14 +61,17 @@ def fast_board(frequency: float) -> float:
     return FAST_SECONDS / elapsed
 
 
-def fast_env_step(steps: int = 5000) -> float:
-    """Seconds per dm_env step of qube_hardware swingup, resets excluded (best of 5 runs)."""
+def fast_env_step(steps: int = 5000, compiled: bool = True) -> float:
+    """Seconds per dm_env step of qube_hardware swingup, resets excluded (best of 5 runs); with
+    `compiled` False, without the wrapper's compiled samples."""
     env = suite.load("qube_hardware", "swingup")
     action = np.array([0.1])
     best = math.inf
     try:
         for _ in range(6):                                # the first run warms up
             env.reset()
+            if not compiled:
+                env.physics.qube._clear_samples = None    # the board calls and checks one by one
             taken, start = 0, time.perf_counter()
             while taken < steps // 5 and not env.step(action).last():
                 taken += 1
@@ -94,9 +99,10 @@ def main() -> None:
     for frequency in (250.0, 500.0, 1000.0):
         wrapped, bare = fast_action(frequency), fast_board(frequency)
         print(f"{frequency:15.0f} {wrapped:17.0f}x {bare:10.0f}x {1e6 / (wrapped * frequency):10.1f}")
-    step = fast_env_step()
-    print(f"\nThrough the environment (qube_hardware swingup, 250 Hz): {1e6 * step:.1f} us per step, "
-          f"{1 / (step * 250.0):.0f}x real time")
+    print("\nThrough the environment (qube_hardware swingup, 250 Hz): time per step, multiple of real time")
+    for label, compiled in (("compiled samples", True), ("board calls one by one", False)):
+        step = fast_env_step(compiled=compiled)
+        print(f"{label:>22s} {1e6 * step:8.1f} us {1 / (step * 250.0):6.0f}x")
     print()
     periods, missed = realtime_periods(250.0)
     ms = 1e3 * periods

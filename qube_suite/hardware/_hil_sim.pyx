@@ -58,6 +58,10 @@ their expiration states (0 V unless set otherwise), the digital outputs too
 (low: amplifier disabled), and further writes raise `HILError` until
 `watchdog_clear` (which leaves the outputs at their expiration states).
 
+Not part of Quanser's API: `ClearSamples`, a safety wrapper's sample in one call in fast
+mode (the task read, the watchdog reload and, when no safety check could stop at that
+sample, the voltage and LED writes), which `quanser.QuanserWrapper` uses on this board.
+
 For tests and for studying the sim-to-real gap: `true_state()`,
 `set_true_state()`, `applied_voltage`, `amplifier_enabled`, `time`, `led` and
 `plant`; in real-time mode they too catch up with the wall clock first.
@@ -1150,15 +1154,15 @@ cdef class ClearSamples:
     last_counts)` does what `task_read(task, 1, ...)`, `watchdog_reload()` and
     `task_get_buffer_overflows(task)` do, in that order; then, if the sample is clear, what
     `write_analog` of analog output 0 and, unless `led` is None, `write_other` of the LED
-    (other outputs 11000-11002, `led` three values in [0, 1], a tuple or an array) do, and returns
-    None. A sample is
-    clear if the watchdog reloaded, the overflow count is `overflows_seen` (no sample missed;
-    None: unknown), no digital input is set (amplifier fault, stall warning, stall error), no
-    encoder count moved by more than `jump_limit` counts from `last_counts` (a list, one per
-    encoder; None: unknown), the arm encoder's count (`arm_at`, -1: none) times `arm_scale`
-    (rad per count) is within `arm_limit` (rad) of zero, and the board takes writes. Otherwise
-    nothing is written and it returns (watchdog reloaded, buffer overflows) for the wrapper's
-    own checks. Errors of the read raise as from `task_read`.
+    (other outputs 11000-11002, `led` three values in [0, 1], a tuple or an array) do, and
+    returns None. A sample is clear if the watchdog reloaded, the overflow count is
+    `overflows_seen` (no sample missed; None: unknown), no digital input is set (amplifier
+    fault, stall warning, stall error), no encoder count moved by more than `jump_limit` counts
+    from `last_counts` (a list, one per encoder; None: unknown), the arm encoder's count
+    (`arm_at`, -1: none) times `arm_scale` (rad per count) is within `arm_limit` (rad) of zero,
+    and the board takes writes. Otherwise nothing is written and it returns (watchdog reloaded,
+    buffer overflows) for the wrapper's own checks. Errors of the read raise as from
+    `task_read`.
     """
 
     cdef HIL board
