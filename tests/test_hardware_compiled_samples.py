@@ -45,6 +45,12 @@ def _disturb(rng, qube):
         qube.reset_encoders()
     elif event == 7:
         qube.idle()
+    elif event == 20:                          # the checks' settings changed on an open board
+        qube.arm_limit = [None, 0.5, 2.0, 2.1][rng.integers(4)]
+    elif event == 21:
+        qube.max_encoder_speed = [None, 5.0, 50.0, 500.0][rng.integers(4)]
+    elif event == 22:
+        qube.max_missed_samples = [None, 0, 2, 10][rng.integers(4)]
 
 
 def _step(rng, qube):

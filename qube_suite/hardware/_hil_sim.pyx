@@ -92,7 +92,7 @@ import time
 
 import numpy as np
 
-from libc.math cimport cos, exp, fabs, floor, isfinite, log, sin, sqrt
+from libc.math cimport INFINITY, cos, exp, fabs, floor, isfinite, log, sin, sqrt
 from libc.stdlib cimport free, llabs, malloc
 
 from qube_suite.angles import wrap_angle
@@ -1148,19 +1148,21 @@ cdef class ClearSamples:
     """A safety wrapper's samples on this board in fast mode, one call each, for the samples in
     which none of its checks could stop the motor (the wrapper: `quanser.QuanserWrapper`).
 
-    ClearSamples(board, task, currents, encoders, digitals, others, volts, jump_limit, arm_at,
-    arm_scale, arm_limit) binds the wrapper's buffers: the task's readings, and `volts`, the
+    ClearSamples(board, task, currents, encoders, digitals, others, volts, arm_at, arm_scale,
+    radians_per_count) binds the wrapper's buffers: the task's readings, and `volts`, the
     voltage for analog output 0 (V, board sign, finite). `sample(led, overflows_seen,
-    last_counts)` does what `task_read(task, 1, ...)`, `watchdog_reload()` and
-    `task_get_buffer_overflows(task)` do, in that order; then, if the sample is clear, what
-    `write_analog` of analog output 0 and, unless `led` is None, `write_other` of the LED
-    (other outputs 11000-11002, `led` three values in [0, 1], a tuple or an array) do, and
-    returns None. A sample is clear if the watchdog reloaded, the overflow count is
-    `overflows_seen` (no sample missed; None: unknown), no digital input is set (amplifier
-    fault, stall warning, stall error), no encoder count moved by more than `jump_limit` counts
-    from `last_counts` (a list, one per encoder; None: unknown), the arm encoder's count
-    (`arm_at`, -1: none) times `arm_scale` (rad per count) is within `arm_limit` (rad) of zero,
-    and the board takes writes. Otherwise nothing is written and it returns (watchdog reloaded,
+    last_counts, max_missed_samples, max_encoder_speed, frequency, arm_limit)` does what
+    `task_read(task, 1, ...)`, `watchdog_reload()` and `task_get_buffer_overflows(task)` do, in
+    that order; then, if the sample is clear, what `write_analog` of analog output 0 and, unless
+    `led` is None, `write_other` of the LED (other outputs 11000-11002, `led` three values in
+    [0, 1], a tuple or an array) do, and returns None. A sample is clear if the watchdog
+    reloaded, the overflow count is `overflows_seen` (no sample missed; None: unknown) and
+    `max_missed_samples` is None or not negative, no digital input is set (amplifier fault,
+    stall warning, stall error), no encoder count moved from `last_counts` (a list, one per
+    encoder; None: unknown) by more than `max_encoder_speed` (rad/s; None: any) allows in one
+    sample at `frequency` (Hz) plus one count, the arm encoder's count (`arm_at`, -1: none)
+    times `arm_scale` (rad per count) is within `arm_limit` (rad; None: anywhere) of zero, and
+    the board takes writes. Otherwise nothing is written and it returns (watchdog reloaded,
     buffer overflows) for the wrapper's own checks. Errors of the read raise as from
     `task_read`.
     """
@@ -1172,12 +1174,12 @@ cdef class ClearSamples:
     cdef signed char[::1] digitals
     cdef double[::1] others
     cdef double[::1] volts
-    cdef double jump_limit, arm_scale, arm_limit
+    cdef double arm_scale, radians_per_count
     cdef int arm_at
 
     def __init__(self, HIL board not None, Task task not None, double[::1] currents, int[::1] encoders,
-                 signed char[::1] digitals, double[::1] others, double[::1] volts, double jump_limit,
-                 int arm_at, double arm_scale, double arm_limit):
+                 signed char[::1] digitals, double[::1] others, double[::1] volts, int arm_at,
+                 double arm_scale, double radians_per_count):
         _check_buffer(_length_d(currents), task.n_analog, "analog")
         _check_buffer(_length_i(encoders), task.n_encoder, "encoder")
         _check_buffer(_length_b(digitals), task.n_digital, "digital")
@@ -1188,11 +1190,17 @@ cdef class ClearSamples:
         self.board, self.task = board, task
         self.currents, self.encoders, self.digitals, self.others = currents, encoders, digitals, others
         self.volts = volts
-        self.jump_limit, self.arm_at, self.arm_scale, self.arm_limit = jump_limit, arm_at, arm_scale, arm_limit
+        self.arm_at, self.arm_scale, self.radians_per_count = arm_at, arm_scale, radians_per_count
 
-    def sample(self, led, overflows_seen, list last_counts):
+    def sample(self, led, overflows_seen, list last_counts, max_missed_samples, max_encoder_speed,
+               double frequency, arm_limit):
         """One sample: None if it was clear and written, else (watchdog reloaded, buffer overflows)."""
         cdef HIL b = self.board
+        cdef double jump_limit = INFINITY, arm_reach = INFINITY
+        if max_encoder_speed is not None:                       # the wrapper's limit, no sample missed
+            jump_limit = <double>max_encoder_speed * 1 / frequency / self.radians_per_count + 1
+        if arm_limit is not None:
+            arm_reach = arm_limit
         cdef const double[::1] rgb
         cdef bint reloaded, clear
         cdef long long overflows, now, before
@@ -1217,6 +1225,7 @@ cdef class ClearSamples:
             b._require_task(self.task)                          # task_get_buffer_overflows
             overflows = b.smp.overflows if self.task is b.running_task else 0
             clear = (reloaded and overflows_seen is not None and overflows == overflows_seen
+                     and (max_missed_samples is None or max_missed_samples >= 0)
                      and last_counts is not None and len(last_counts) == self.task.n_encoder)
             j = 0
             while clear and j < self.task.n_digital:
@@ -1225,10 +1234,10 @@ cdef class ClearSamples:
             j = 0
             while clear and j < self.task.n_encoder:
                 now, before = self.encoders[j], last_counts[j]
-                clear = not (<double>llabs(now - before) > self.jump_limit)
+                clear = not (<double>llabs(now - before) > jump_limit)
                 j += 1
             if clear and self.arm_at >= 0:
-                clear = fabs(self.arm_scale * <double>self.encoders[self.arm_at]) <= self.arm_limit
+                clear = fabs(self.arm_scale * <double>self.encoders[self.arm_at]) <= arm_reach
             if clear:                                           # write_analog, write_other
                 b._sync()
                 clear = not b.wd.expired and isfinite(self.volts[0])

@@ -522,13 +522,10 @@ class QuanserWrapper:
         if (hil_class is not _hil_sim.HIL or type(board) is not _hil_sim.HIL or self.realtime
                 or d.analog_outputs != (0,) or d.led_outputs != _hil_sim.OTHER_LED):
             return None
-        jump_limit = (math.inf if self.max_encoder_speed is None  # `_check_encoders`' limit, no sample missed
-                      else self.max_encoder_speed * 1 / self.frequency / conventions.RADIANS_PER_COUNT + 1)
-        arm_checked = self.arm_limit is not None and self._arm_at is not None
         return _hil_sim.ClearSamples(
             board, self._task, self._currents, self._encoders, self._digitals, self._others, self._volts,
-            jump_limit, self._arm_at if arm_checked else -1,
-            conventions.ARM_SIGN * conventions.RADIANS_PER_COUNT, self.arm_limit if arm_checked else math.inf)
+            -1 if self._arm_at is None else self._arm_at,
+            conventions.ARM_SIGN * conventions.RADIANS_PER_COUNT, conventions.RADIANS_PER_COUNT)
 
     def _at_rest(self, board: Any) -> bool:
         """True if no encoder count moved by more than one from where it was over `REST_CHECK_TIME`
@@ -585,7 +582,9 @@ class QuanserWrapper:
                 board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
                 reloaded, overflows = None, None  # asked below
             else:  # read, reload and, where no check below could stop, write in one compiled call
-                outcome = self._clear_samples.sample(rgb, self._overflows_seen, self._last_counts)
+                outcome = self._clear_samples.sample(  # the checks' settings as they are now
+                    rgb, self._overflows_seen, self._last_counts, self.max_missed_samples,
+                    self.max_encoder_speed, self.frequency, self.arm_limit)
                 if outcome is None:
                     return self._after_clear_sample()
                 reloaded, overflows = outcome
