@@ -20,7 +20,8 @@ def _random_voltages(rng):
 def _random_led(rng):
     kind = rng.integers(20)
     colour = tuple(float(x) for x in rng.random(3))
-    return [colour, (1.5, 0.0, 0.0), (math.nan, 0.0, 0.0), list(colour), *[None] * 16][kind]
+    strided = np.repeat(np.array(colour), 2)[::2]                  # an array that is not contiguous
+    return [colour, (1.5, 0.0, 0.0), (math.nan, 0.0, 0.0), list(colour), strided, *[None] * 15][kind]
 
 
 def _disturb(rng, qube):

@@ -749,7 +749,7 @@ class QuanserWrapper:
                 and all([type(x) is float and 0.0 <= x <= 1.0 for x in led])):  # NaN fails the comparison
             return led
         try:
-            rgb = np.asarray(led, dtype=np.float64)
+            rgb = np.array(led, dtype=np.float64)  # a copy of its own, contiguous whatever `led` is
         except (TypeError, ValueError):
             self._refuse(f"led must be {len(self.device.led_outputs)} numbers in [0, 1], got {led!r}")
         if rgb.shape != (len(self.device.led_outputs),) or not (np.isfinite(rgb).all()
