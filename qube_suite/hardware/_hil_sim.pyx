@@ -58,6 +58,10 @@ their expiration states (0 V unless set otherwise), the digital outputs too
 (low: amplifier disabled), and further writes raise `HILError` until
 `watchdog_clear` (which leaves the outputs at their expiration states).
 
+Not part of Quanser's API: `ClearSamples`, a safety wrapper's sample in one call in fast
+mode (the task read, the watchdog reload and, when no safety check could stop at that
+sample, the voltage and LED writes), which `quanser.QuanserWrapper` uses on this board.
+
 For tests and for studying the sim-to-real gap: `true_state()`,
 `set_true_state()`, `applied_voltage`, `amplifier_enabled`, `time`, `led` and
 `plant`; in real-time mode they too catch up with the wall clock first.
@@ -88,8 +92,8 @@ import time
 
 import numpy as np
 
-from libc.math cimport cos, exp, fabs, floor, log, sin, sqrt
-from libc.stdlib cimport free, malloc
+from libc.math cimport INFINITY, cos, exp, fabs, floor, isfinite, log, sin, sqrt
+from libc.stdlib cimport free, llabs, malloc
 
 from qube_suite.angles import wrap_angle
 from qube_suite.hardware import conventions
@@ -580,12 +584,13 @@ cdef class HIL:
     def write_analog(self, channels, num_channels, const double[::1] buffer):
         """Set the motor voltage (V); the amplifier applies it within its limit while enabled."""
         cdef list chans = _channels(channels, num_channels, _length_cd(buffer), "analog output", (0,))
-        for j in range(len(chans)):
-            if not math.isfinite(buffer[j]):
+        cdef Py_ssize_t j, n = len(chans)
+        for j in range(n):
+            if not isfinite(buffer[j]):
                 raise HILError(INVALID_ARGUMENT, f"analog output value {buffer[j]} is not finite")
         with self.lock:
             self._require_writable()
-            for j in range(len(chans)):
+            for j in range(n):
                 self.out.analog = buffer[j]
 
     def write_digital(self, channels, num_channels, const signed char[::1] buffer):
@@ -700,49 +705,23 @@ cdef class HIL:
 
         Returns 0 once a finite task has delivered all its samples.
         """
-        cdef long n = num_samples, j, c, k
-        cdef Sample* sample
+        cdef long n = num_samples
         _check_buffer(_length_d(analog_buffer), n * task.n_analog, "analog")
         _check_buffer(_length_i(encoder_buffer), n * task.n_encoder, "encoder")
         _check_buffer(_length_b(digital_buffer), n * task.n_digital, "digital")
         _check_buffer(_length_d(other_buffer), n * task.n_other, "other")
         with self.lock:
-            self._require_task(task)
-            if task is not self.running_task:
-                raise HILError(INVALID_TASK, "the task is not running")
-            if self.read_failure is not None:
-                if self.reads_before_failure == 0:
-                    failure, self.read_failure = self.read_failure, None
-                    raise failure
-                self.reads_before_failure -= 1
-            if n <= 0 or n > self.smp.capacity:
-                raise HILError(TOO_MANY_SAMPLES, f"can read 1 to {self.smp.capacity} samples, not {n}")
-            if not self._wait_for_samples(n):
-                return 0
-            self._require_finite()
-            if self.smp.overflow_pending:
-                self.smp.overflow_pending = False
-                raise HILError(BUFFER_OVERFLOW, "the task buffer overflowed: samples were not read in time")
-            for k in range(n):
-                sample = &self.smp.ring[self.smp.head]
-                for j in range(task.n_analog):
-                    analog_buffer[k * task.n_analog + j] = sample.current
-                for j in range(task.n_encoder):
-                    c = task.encoder[j]
-                    encoder_buffer[k * task.n_encoder + j] = sample.encoder[c]
-                for j in range(task.n_digital):
-                    c = task.digital[j]
-                    digital_buffer[k * task.n_digital + j] = sample.digital[c]
-                for j in range(task.n_other):
-                    other_buffer[k * task.n_other + j] = (
-                        sample.tachometer if task.other[j] == OTHER_TACHOMETER else sample.pendulum_tachometer)
-                self.smp.head = (self.smp.head + 1) % self.smp.capacity
-                self.smp.count -= 1
-        return n
+            return self._read_task(task, n, analog_buffer, encoder_buffer, digital_buffer, other_buffer)
 
     def task_read_encoder(self, Task task not None, num_samples, int[::1] buffer):
         """`task_read` of an encoder reader task."""
-        return self.task_read(task, num_samples, None, buffer, None, None)
+        cdef long n = num_samples
+        _check_buffer(-1, n * task.n_analog, "analog")          # no buffers for the task's other inputs
+        _check_buffer(_length_i(buffer), n * task.n_encoder, "encoder")
+        _check_buffer(-1, n * task.n_digital, "digital")
+        _check_buffer(-1, n * task.n_other, "other")
+        with self.lock:
+            return self._read_task(task, n, None, buffer, None, None)
 
     def task_get_buffer_overflows(self, Task task not None):
         """Samples lost (overwritten or discarded) because the task buffer was full."""
@@ -1000,6 +979,45 @@ cdef class HIL:
         sample.tachometer = ARM_SIGN * self.s.x[2] * COUNTS_PER_RADIAN
         sample.pendulum_tachometer = PENDULUM_SIGN * self.s.x[3] * COUNTS_PER_RADIAN
 
+    cdef long _read_task(self, Task task, long n, double[::1] analog_buffer, int[::1] encoder_buffer,
+                         signed char[::1] digital_buffer, double[::1] other_buffer) except -1:
+        """`task_read`'s work, the lock held and the buffers checked: the samples read (0: the task
+        has delivered all its samples)."""
+        cdef long j, c, k
+        cdef Sample* sample
+        self._require_task(task)
+        if task is not self.running_task:
+            raise HILError(INVALID_TASK, "the task is not running")
+        if self.read_failure is not None:
+            if self.reads_before_failure == 0:
+                failure, self.read_failure = self.read_failure, None
+                raise failure
+            self.reads_before_failure -= 1
+        if n <= 0 or n > self.smp.capacity:
+            raise HILError(TOO_MANY_SAMPLES, f"can read 1 to {self.smp.capacity} samples, not {n}")
+        if not self._wait_for_samples(n):
+            return 0
+        self._require_finite()
+        if self.smp.overflow_pending:
+            self.smp.overflow_pending = False
+            raise HILError(BUFFER_OVERFLOW, "the task buffer overflowed: samples were not read in time")
+        for k in range(n):
+            sample = &self.smp.ring[self.smp.head]
+            for j in range(task.n_analog):
+                analog_buffer[k * task.n_analog + j] = sample.current
+            for j in range(task.n_encoder):
+                c = task.encoder[j]
+                encoder_buffer[k * task.n_encoder + j] = sample.encoder[c]
+            for j in range(task.n_digital):
+                c = task.digital[j]
+                digital_buffer[k * task.n_digital + j] = sample.digital[c]
+            for j in range(task.n_other):
+                other_buffer[k * task.n_other + j] = (
+                    sample.tachometer if task.other[j] == OTHER_TACHOMETER else sample.pendulum_tachometer)
+            self.smp.head = (self.smp.head + 1) % self.smp.capacity
+            self.smp.count -= 1
+        return n
+
     cdef Sample _read_now(self) except *:
         """The present sample of an open board (the immediate reads)."""
         cdef Sample sample
@@ -1124,6 +1142,113 @@ cdef class HIL:
         if task.deleted or task.board is not self:
             raise HILError(INVALID_TASK, "not a task of this board")
         return 0
+
+
+cdef class ClearSamples:
+    """A safety wrapper's samples on this board in fast mode, one call each, for the samples in
+    which none of its checks could stop the motor (the wrapper: `quanser.QuanserWrapper`).
+
+    ClearSamples(board, task, currents, encoders, digitals, others, volts, arm_at, arm_scale,
+    radians_per_count) binds the wrapper's buffers: the task's readings, and `volts`, the
+    voltage for analog output 0 (V, board sign, finite). `sample(led, overflows_seen,
+    last_counts, max_missed_samples, max_encoder_speed, frequency, arm_limit)` does what
+    `task_read(task, 1, ...)`, `watchdog_reload()` and `task_get_buffer_overflows(task)` do, in
+    that order; then, if the sample is clear, what `write_analog` of analog output 0 and, unless
+    `led` is None, `write_other` of the LED (other outputs 11000-11002, `led` three values in
+    [0, 1], a tuple or an array) do, and returns None. A sample is clear if the watchdog
+    reloaded, the overflow count is `overflows_seen` (no sample missed; None: unknown) and
+    `max_missed_samples` is None or not negative, no digital input is set (amplifier fault,
+    stall warning, stall error), no encoder count moved from `last_counts` (a list, one per
+    encoder; None: unknown) by more than `max_encoder_speed` (rad/s; None: any) allows in one
+    sample at `frequency` (Hz) plus one count, the arm encoder's count (`arm_at`, -1: none)
+    times `arm_scale` (rad per count) is within `arm_limit` (rad; None: anywhere) of zero, and
+    the board takes writes. Otherwise nothing is written and it returns (watchdog reloaded,
+    buffer overflows) for the wrapper's own checks. Errors of the read raise as from
+    `task_read`.
+    """
+
+    cdef HIL board
+    cdef Task task
+    cdef double[::1] currents
+    cdef int[::1] encoders
+    cdef signed char[::1] digitals
+    cdef double[::1] others
+    cdef double[::1] volts
+    cdef double arm_scale, radians_per_count
+    cdef int arm_at
+
+    def __init__(self, HIL board not None, Task task not None, double[::1] currents, int[::1] encoders,
+                 signed char[::1] digitals, double[::1] others, double[::1] volts, int arm_at,
+                 double arm_scale, double radians_per_count):
+        _check_buffer(_length_d(currents), task.n_analog, "analog")
+        _check_buffer(_length_i(encoders), task.n_encoder, "encoder")
+        _check_buffer(_length_b(digitals), task.n_digital, "digital")
+        _check_buffer(_length_d(others), task.n_other, "other")
+        _check_buffer(_length_d(volts), 1, "analog output")
+        if not -1 <= arm_at < task.n_encoder:
+            raise ValueError(f"arm_at must be -1 or an encoder's place in the task, got {arm_at}")
+        self.board, self.task = board, task
+        self.currents, self.encoders, self.digitals, self.others = currents, encoders, digitals, others
+        self.volts = volts
+        self.arm_at, self.arm_scale, self.radians_per_count = arm_at, arm_scale, radians_per_count
+
+    def sample(self, led, overflows_seen, list last_counts, max_missed_samples, max_encoder_speed,
+               double frequency, arm_limit):
+        """One sample: None if it was clear and written, else (watchdog reloaded, buffer overflows)."""
+        cdef HIL b = self.board
+        cdef double jump_limit = INFINITY, arm_reach = INFINITY
+        if max_encoder_speed is not None:                       # the wrapper's limit, no sample missed
+            jump_limit = <double>max_encoder_speed * 1 / frequency / self.radians_per_count + 1
+        if arm_limit is not None:
+            arm_reach = arm_limit
+        cdef const double[::1] rgb
+        cdef bint reloaded, clear
+        cdef long long overflows, now, before
+        cdef long j
+        cdef double value
+        cdef double colour[3]
+        if type(led) is tuple:
+            if len(led) != 3:
+                raise ValueError(f"led must hold 3 values, got {led!r}")
+            colour[0], colour[1], colour[2] = led
+        elif led is not None:
+            rgb = led
+            _check_buffer(_length_cd(rgb), 3, "other output")
+            colour[0], colour[1], colour[2] = rgb[0], rgb[1], rgb[2]
+        with b.lock:
+            b._read_task(self.task, 1, self.currents, self.encoders, self.digitals, self.others)
+            b._require_open()                                   # watchdog_reload
+            b._sync()
+            reloaded = not b.wd.expired
+            if reloaded:
+                b.wd.deadline = b.s.t + b.wd.timeout
+            b._require_task(self.task)                          # task_get_buffer_overflows
+            overflows = b.smp.overflows if self.task is b.running_task else 0
+            clear = (reloaded and overflows_seen is not None and overflows == overflows_seen
+                     and (max_missed_samples is None or max_missed_samples >= 0)
+                     and last_counts is not None and len(last_counts) == self.task.n_encoder)
+            j = 0
+            while clear and j < self.task.n_digital:
+                clear = self.digitals[j] == 0
+                j += 1
+            j = 0
+            while clear and j < self.task.n_encoder:
+                now, before = self.encoders[j], last_counts[j]
+                clear = not (<double>llabs(now - before) > jump_limit)
+                j += 1
+            if clear and self.arm_at >= 0:
+                clear = fabs(self.arm_scale * <double>self.encoders[self.arm_at]) <= arm_reach
+            if clear:                                           # write_analog, write_other
+                b._sync()
+                clear = not b.wd.expired and isfinite(self.volts[0])
+            if not clear:
+                return reloaded, overflows
+            b.out.analog = self.volts[0]
+            if led is not None:
+                for j in range(3):
+                    value = 0.0 if 0.0 > colour[j] else colour[j]   # Python's min(max(value, 0.0), 1.0)
+                    b.out.led[j] = 1.0 if 1.0 < value else value
+        return None
 
 
 cdef list _channels(channels, num_channels, Py_ssize_t buffer_length, str kind, tuple valid):

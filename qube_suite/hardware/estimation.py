@@ -35,15 +35,19 @@ class StateEstimator:
 
     def __call__(self, encoder_counts: Sequence[int]) -> np.ndarray:
         """The state (rad, rad/s; angles wrapped to (-pi, pi]) from [arm counts, pendulum counts]."""
+        return np.array(self.estimate(encoder_counts))
+
+    def estimate(self, encoder_counts: Sequence[int]) -> tuple[float, float, float, float]:
+        """`self(encoder_counts)` as a tuple of floats (what a control loop reads fastest)."""
         arm, pendulum = (encoder_counts.tolist() if isinstance(encoder_counts, np.ndarray)
                          else encoder_counts)[:2]
         theta = conventions.arm_angle(arm)
         alpha = conventions.pendulum_angle_unwrapped(pendulum)
-        if self._last is None:
+        last = self._last
+        if last is None:
             dtheta = dalpha = 0.0
         else:  # the filter's step in floats, which gives the same numbers as on its arrays
-            last_theta, last_alpha, last_dtheta, last_dalpha = self._last
-            dtheta = filtered_velocity(last_dtheta, theta, last_theta, self._pole, self._gain)
-            dalpha = filtered_velocity(last_dalpha, alpha, last_alpha, self._pole, self._gain)
+            dtheta = filtered_velocity(last[2], theta, last[0], self._pole, self._gain)
+            dalpha = filtered_velocity(last[3], alpha, last[1], self._pole, self._gain)
         self._last = (theta, alpha, dtheta, dalpha)
-        return np.array([wrap_angle(theta), wrap_angle(alpha), dtheta, dalpha])
+        return wrap_angle(theta), wrap_angle(alpha), dtheta, dalpha

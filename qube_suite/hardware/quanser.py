@@ -51,6 +51,12 @@ its zero (`ArmLimitError`; raised again after `resume()` and at the next open
 until the arm is back: `return_arm()` may bring it back, towards the centre only,
 gently, and not against whatever holds it). A board that cannot be opened raises `BoardOpenError`. The
 stall warning (digital input 1) is reported by `stall_warning`.
+
+On the substitute board in fast mode (`realtime` False) a sample is read, the watchdog
+reloaded and, if none of these checks could stop at that sample, the voltage and LED
+written in one compiled call (`_hil_sim.ClearSamples`); any other sample goes through the
+checks one by one. Both give the same readings, refusals and stops, bit for bit
+(`tests/test_hardware_compiled_samples.py`).
 """
 
 from __future__ import annotations
@@ -403,6 +409,7 @@ class QuanserWrapper:
         self._held_samples = 0  # samples in a row of return_arm() beyond the limit above RETURN_CURRENT
         self._last_counts: list[int] | None = None  # encoder counts of the last sample, for the glitch check
         self._board_error: type[Exception] = Exception  # the board's HILError class, set at open()
+        self._clear_samples: Any = None  # the substitute's compiled sample call, set at open()
         self._handle = _Handle(self._channels)
         # Garbage collection and interpreter exit leave the board safe too (the handle, not `self`).
         self._finalizer = weakref.finalize(self, self._handle.shut)
@@ -459,6 +466,7 @@ class QuanserWrapper:
                 "it open") from error
         handle = self._handle
         handle.board, handle.task, handle.open, self._idle = board, None, True, False
+        self._clear_samples = None
         TERMINATION_UNWINDS.hold(handle)
         self.missed_samples, self.stall_warning, self._overflows_seen = 0, False, None
         self._last_counts = None
@@ -496,12 +504,28 @@ class QuanserWrapper:
                                 np.ones(len(c["digital_outputs"]), dtype=np.int8))
             self._overflows_seen = None
             board.watchdog_start(self.watchdog_timeout)
+            self._clear_samples = self._compiled_samples(hil_class, board)
         except BaseException as error:
             self.close()
             if isinstance(error, self._board_error):
                 raise BoardIOError(
                     f"could not set up the {self.device.board_type} board: {error_text(error)}") from error
             raise
+
+    def _compiled_samples(self, hil_class: Any, board: Any) -> Any:
+        """The substitute's `ClearSamples` for this wrapper's samples in fast mode (the substitute
+        itself, its channels as the device declares them), else None: every sample then goes
+        through the board calls and checks of `_act` one by one."""
+        from qube_suite.hardware import _hil_sim
+
+        d = self.device
+        if (hil_class is not _hil_sim.HIL or type(board) is not _hil_sim.HIL or self.realtime
+                or d.analog_outputs != (0,) or d.led_outputs != _hil_sim.OTHER_LED):
+            return None
+        return _hil_sim.ClearSamples(
+            board, self._task, self._currents, self._encoders, self._digitals, self._others, self._volts,
+            -1 if self._arm_at is None else self._arm_at,
+            conventions.ARM_SIGN * conventions.RADIANS_PER_COUNT, conventions.RADIANS_PER_COUNT)
 
     def _at_rest(self, board: Any) -> bool:
         """True if no encoder count moved by more than one from where it was over `REST_CHECK_TIME`
@@ -554,20 +578,32 @@ class QuanserWrapper:
         volts = self._checked_voltages(voltages)
         rgb = None if led is None else self._checked_led(led)
         try:
-            board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
+            if self._clear_samples is None:
+                board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
+                reloaded, overflows = None, None  # asked below
+            else:  # read, reload and, where no check below could stop, write in one compiled call
+                outcome = self._clear_samples.sample(  # the checks' settings as they are now
+                    rgb, self._overflows_seen, self._last_counts, self.max_missed_samples,
+                    self.max_encoder_speed, self.frequency, self.arm_limit)
+                if outcome is None:
+                    return self._after_clear_sample()
+                reloaded, overflows = outcome
         except self._board_error as error:
             self._stop(BoardIOError(f"the board could not deliver a sample: {error_text(error)}"), error)
-        if not board.watchdog_reload():
+        if not (board.watchdog_reload() if reloaded is None else reloaded):
             self._stop(WatchdogExpiredError(
                 f"the watchdog expired: no action for {self.watchdog_timeout} s, so the board zeroed its "
                 "outputs; resume() drives again"))
-        missed = self._check_missed_samples(board)
+        missed = self._check_missed_samples(board, overflows)
         self._check_amplifier()
         self._check_encoders(missed)
         self._check_arm(volts[0], returning)
         try:
             board.write_analog(self._channels["analog_outputs"], len(volts), volts)
             if rgb is not None:
+                if type(rgb) is tuple:
+                    self._rgb[:] = rgb
+                    rgb = self._rgb
                 board.write_other(self._channels["led_outputs"], len(rgb), rgb)
         except self._board_error as error:
             if board.watchdog_is_expired():  # it expired after the reload (the process was held up)
@@ -576,6 +612,16 @@ class QuanserWrapper:
                     f"{self.watchdog_timeout} s), so the board zeroed its outputs; resume() drives again"),
                     error)
             self._stop(BoardIOError(f"the board refused the voltage: {error_text(error)}"), error)
+        return self._currents.copy(), self._encoders.copy(), self._others.copy()
+
+    def _after_clear_sample(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What the checks of `_act` leave after a sample that `ClearSamples` found clear and wrote:
+        no sample missed, no flag set, the counts kept for the next glitch check, the arm within
+        its limit; `_act`'s readings."""
+        self.stall_warning = False
+        self._last_counts = self._encoders.tolist()
+        if self.arm_limit is not None and self._arm_at is not None:
+            self._return_from, self._held_samples = None, 0
         return self._currents.copy(), self._encoders.copy(), self._others.copy()
 
     def idle(self) -> None:
@@ -639,9 +685,10 @@ class QuanserWrapper:
     # -- safety ----------------------------------------------------------------------------
 
     def _require_open(self) -> Any:
-        if not self._open:
+        handle = self._handle
+        if not handle.open:
             raise RuntimeError("the board is not open: use `with QubeServo2(...) as qube:` or call open()")
-        return self._board
+        return handle.board
 
     def zero_voltage(self) -> None:
         """Write 0 V now (the amplifier stays enabled, the watchdog running: the next `action` drives
@@ -667,10 +714,11 @@ class QuanserWrapper:
 
     def _checked_voltages(self, voltages) -> np.ndarray:
         n = len(self._volts)
-        if type(voltages) is float and n == 1:
-            return self._clipped([voltages], voltages)  # the common cases, without building an array
-        if type(voltages) is list and len(voltages) == n and all(type(v) is float for v in voltages):
+        if type(voltages) is list and len(voltages) == n and (  # the common cases, without building an array
+                type(voltages[0]) is float if n == 1 else all(type(v) is float for v in voltages)):
             return self._clipped(voltages, voltages)
+        if type(voltages) is float and n == 1:
+            return self._clipped([voltages], voltages)
         try:
             values = np.asarray(voltages)
         except (TypeError, ValueError):
@@ -693,13 +741,15 @@ class QuanserWrapper:
             self._volts[j] = -limit if value < -limit else limit if value > limit else value
         return self._volts
 
-    def _checked_led(self, led) -> np.ndarray:
+    def _checked_led(self, led) -> tuple[float, ...] | np.ndarray:
+        """`led` itself if it is a tuple of floats in [0, 1] (the common case, without building an
+        array), else an array of its values; refused (0 V, ValueError) unless one number in [0, 1]
+        for each LED output."""
         if (type(led) is tuple and len(led) == len(self._rgb)
-                and all(type(x) is float and 0.0 <= x <= 1.0 for x in led)):  # NaN fails the comparison
-            self._rgb[:] = led  # the common case, without building and scanning arrays
-            return self._rgb
+                and all([type(x) is float and 0.0 <= x <= 1.0 for x in led])):  # NaN fails the comparison
+            return led
         try:
-            rgb = np.asarray(led, dtype=np.float64)
+            rgb = np.array(led, dtype=np.float64)  # a copy of its own, contiguous whatever `led` is
         except (TypeError, ValueError):
             self._refuse(f"led must be {len(self.device.led_outputs)} numbers in [0, 1], got {led!r}")
         if rgb.shape != (len(self.device.led_outputs),) or not (np.isfinite(rgb).all()
@@ -707,9 +757,11 @@ class QuanserWrapper:
             self._refuse(f"led must be {len(self.device.led_outputs)} numbers in [0, 1], got {led!r}")
         return rgb
 
-    def _check_missed_samples(self, board) -> int:
-        """Count the samples missed since the last action (returned) and stop if too many."""
-        overflows = board.task_get_buffer_overflows(self._task)
+    def _check_missed_samples(self, board, overflows: int | None = None) -> int:
+        """Count the samples missed since the last action (returned) and stop if too many; `overflows`:
+        the board's overflow count, if already asked."""
+        if overflows is None:
+            overflows = board.task_get_buffer_overflows(self._task)
         missed = 0 if self._overflows_seen is None else overflows - self._overflows_seen
         self._overflows_seen = overflows
         self.missed_samples += missed

@@ -572,14 +572,14 @@ class Physics(BoardClockAndLed, MeasuredState, control.Physics):
             FULL_COLLECTIONS.release(self)
 
     def _sample(self, volts: float, returning: bool = False) -> None:
-        act = self.qube.return_arm if returning else self.qube.action
+        qube, led = self.qube, self._led
+        act = qube.return_arm if returning else qube.action
         self.currents, self.encoders, self.others = act(
-            [conventions.board_voltage(volts)], led=None if self._led == self._led_shown else self._led)
-        self._led_shown = self._led  # written only when it changes: one board call less per sample
-        limit = self.qube.max_voltage
+            [conventions.board_voltage(volts)], None if led == self._led_shown else led)
+        self._led_shown = led  # written only when it changes: one board call less per sample
+        limit = qube.max_voltage
         self._applied = -limit if volts < -limit else limit if volts > limit else volts
-        theta, alpha, dtheta, dalpha = self._estimator(self.encoders).tolist()
-        self._estimate = (theta, alpha, dtheta, dalpha)
+        self._estimate = self._estimator.estimate(self.encoders)
         self._samples += 1
 
     def _return_arm(self) -> None:
