@@ -21,6 +21,9 @@ requires_offscreen_gl = pytest.mark.render
 """Mark of a test that renders frames: skipped where no offscreen OpenGL library is found."""
 
 HARDWARE_MODULES = ("test_hardware_", "test_baselines_hardware")
+JAX_MODULES = ("test_mjx",)
+"""Modules that start JAX's thread pools: they run after every other test, so that no test that times
+signals and samples by the wall clock shares its process with them."""
 
 
 def pytest_collection_modifyitems(config, items):
@@ -30,6 +33,7 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.hardware)
         if item.get_closest_marker("render") is not None and not OFFSCREEN_GL:
             item.add_marker(skip_render)
+    items.sort(key=lambda item: item.module.__name__.startswith(JAX_MODULES))  # stable: order kept otherwise
 
 
 @pytest.fixture

@@ -17,7 +17,8 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 README = (ROOT / "README.md").read_text()
 PAGES = {path.relative_to(ROOT).as_posix(): path.read_text()
          for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]}
-OWN_TESTS = {"docs/hardware.md": "test_docs_hardware.py (on the wall-clock test board)"}
+OWN_TESTS = {"docs/hardware.md": "test_docs_hardware.py (on the wall-clock test board)",
+             "docs/gpu-training.md": "test_mjx.py (with JAX, after every other test)"}
 """Pages whose examples need a board and are run by a test of their own."""
 EXAMPLE = re.compile(r"```python\n(.*?)```(?:\n+```text\n(.*?)```)?", re.S)
 """A Python block, and the block of what it prints if one follows it (```text)."""

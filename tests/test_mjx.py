@@ -4,6 +4,8 @@ draws and policies. Runs on CPU with small batches (the `jax` extra; skipped wit
 from __future__ import annotations
 
 import math
+import pathlib
+import re
 
 import numpy as np
 import pytest
@@ -194,6 +196,14 @@ def test_the_numpy_policy_gives_the_brax_policys_actions():
     observations = jnp.stack([env.rules(jnp.asarray(s, jnp.float32), 0.0)[0] for s in states])
     expected, _ = act(observations, jax.random.PRNGKey(2))
     np.testing.assert_allclose(policy.actions(states), 3.0 * np.asarray(expected[:, 0]), atol=1e-4)
+
+
+def test_the_gpu_training_pages_examples_run():
+    page = (pathlib.Path(__file__).resolve().parent.parent / "docs" / "gpu-training.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", page, re.S)
+    assert blocks
+    for index, code in enumerate(blocks):
+        exec(compile(code, f"docs/gpu-training.md python block {index}", "exec"), {})
 
 
 def test_device_put_replicated_stacks_one_copy_per_device():
