@@ -8,7 +8,7 @@ checked at run time): nothing to inherit or register.
 | protocol | who has it | who asks |
 |---|---|---|
 | `Randomizable` | the simulation, one Qube or a batch | the randomizer (physical parameters) |
-| `SensorEffects`, `ActuatorEffects` | simulation, batch, board | the randomizer (effects) |
+| `SensorEffects`, `ActuatorEffects` | simulation, batch, board (the disk's domains: `ActuatorEffects`) | the randomizer (effects) |
 | `StepDurationEffects` | simulation, batch | the randomizer (control jitter) |
 | `Batch` | a batch of simulated Qubes | the randomizer |
 | `HasBoard` | the hardware domain | `suite.load` (voltage limit), recorder, media, calibration |
