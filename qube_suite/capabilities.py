@@ -8,7 +8,8 @@ checked at run time): nothing to inherit or register.
 | protocol | who has it | who asks |
 |---|---|---|
 | `Randomizable` | the simulation, one Qube or a batch | the randomizer (physical parameters) |
-| `SensorEffects`, `ActuatorEffects` | simulation, batch, board | the randomizer (effects) |
+| `SensorEffects` | simulation, batch, board | the randomizer (effects on the measurement) |
+| `ActuatorEffects` | simulation, batch, board, a device's domains | the randomizer (effects on the voltage) |
 | `StepDurationEffects` | simulation, batch | the randomizer (control jitter) |
 | `Batch` | a batch of simulated Qubes | the randomizer |
 | `HasBoard` | the hardware domain | `suite.load` (voltage limit), recorder, media, calibration |

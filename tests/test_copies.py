@@ -48,8 +48,8 @@ def test_gymnasium_copy_continues_bit_identically(preset, how):
         env.step(np.array([2.0], np.float32))
     twin = COPIES[how](env)
     if preset in ("moderate", "sim2real"):  # their sensor and actuator effects survive the copy
-        assert twin.unwrapped.physics._sensor_model is not None
-        assert twin.unwrapped.physics._actuator_model is not None
+        assert twin.unwrapped.physics._effects.sensor is not None
+        assert twin.unwrapped.physics._effects.actuator is not None
     np.testing.assert_array_equal(gymnasium_rollout(twin), gymnasium_rollout(env))
     # Reseeded, the copy still plays the same episode.
     first = env.reset(seed=3)[0], twin.reset(seed=3)[0]

@@ -104,6 +104,24 @@ def test_every_task_runs_on_both_domains(domain, task):
         env.close()
 
 
+@pytest.mark.parametrize("domain", ["qube_disk", "qube_disk_hardware"])
+def test_voltage_effects_reach_the_disks_motor_and_restart_with_each_episode(domain):
+    delayed = {"effects": {"action_delay": {"steps": 1}, "voltage_offset": {"voltage": 0.25}}}
+    env = suite.load(domain, "speed", task_kwargs={"random": 3}, randomization=delayed)
+    try:
+        for _ in range(2):  # the second episode starts at 0 V again, not from the first's last command
+            env.reset()
+            applied = []
+            for volts in (1.0, 2.0, 3.0):
+                env.step(np.array([volts]))
+                applied.append(env.physics.applied_voltage())
+            assert applied == pytest.approx([0.25, 1.25, 2.25])
+    finally:
+        env.close()
+    with pytest.raises(ValueError, match="cannot apply observation_noise"):
+        suite.load(domain, "speed", randomization={"effects": {"observation_noise": {"std": [0.1] * 4}}})
+
+
 def test_sparse_rewards_are_the_goal_sets():
     env = suite.load("qube_disk", "position_sparse", task_kwargs={"target": "fixed", "target_angle": 0.5})
     env.reset()

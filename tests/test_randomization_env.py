@@ -109,11 +109,11 @@ def test_effects_alone_leave_the_model_and_unused_hooks_alone():
     masses = env.physics.model.body_mass.copy()
     env.reset()
     np.testing.assert_array_equal(env.physics.model.body_mass, masses)
-    assert env.physics._sensor_model is None and env.physics._step_duration_model is None
-    assert env.physics._actuator_model is not None
+    assert env.physics._effects.sensor is None and env.physics._step_duration_model is None
+    assert env.physics._effects.actuator is not None
     plain = suite.load("qube", "swingup")
     plain.reset()
-    assert plain.physics._sensor_model is None and plain.physics._actuator_model is None
+    assert plain.physics._effects.sensor is None and plain.physics._effects.actuator is None
 
 
 def test_ten_line_yaml_file_end_to_end(tmp_path):

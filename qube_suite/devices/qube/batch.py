@@ -34,6 +34,7 @@ import numpy as np
 from qube_suite.angles import wrap_angle
 from qube_suite.devices.qube import parameters as params
 from qube_suite.devices.qube import simulation as qube
+from qube_suite.domains.effects import Effects
 
 _STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
 """MuJoCo state layout of a world: time, qpos, qvel (the Qube has no other state)."""
@@ -113,8 +114,10 @@ class QubeBatch:
         self._worlds = np.arange(num_worlds)
         self._nominal_durations = np.full(num_worlds, self._substeps * template.opt.timestep)
         """Each world's control period as the physics steps cover it (s)."""
-        self._sensor_model = self._actuator_model = self._step_duration_model = None
-        self._calibrated: CalibratedEffects | None = None
+        self._effects = Effects()
+        self._step_duration_model = None
+        self._cables: np.ndarray | None = None
+        """Each world's cable, rest angle and half-width of its slack band (rad), once one is calibrated."""
         self._measure()
 
     # -- the domain interface, one value per world ----------------------------------
@@ -164,10 +167,7 @@ class QubeBatch:
         beyond `qube.MAX_PLAUSIBLE_SPEED`, inf or NaN) goes back to its state before the
         step, its time advanced, and is marked in `physics_error`.
         """
-        volts = self._voltage
-        if self._calibrated is not None:
-            volts = self._calibrated.actuate(volts)
-        motor = volts if self._actuator_model is None else self._actuator_model(volts)
+        motor = self._effects.actuate(self._voltage)
         if self._step_duration_model is None:
             self._control[:, :, 0] = motor[:, None]
             self._pool.rollout(self._models, self._datas, self._state, self._control, control_spec=_CONTROL,
@@ -193,19 +193,18 @@ class QubeBatch:
         row[self._dtheta], row[self._dalpha] = dtheta, dalpha
         self._voltage[world] = 0.0
         exact = wrap_angle(theta), wrap_angle(alpha), dtheta, dalpha
-        if self._calibrated is not None:
-            self._calibrated.restart(world)
-            exact = self._calibrated.read(np.array([exact]), np.array([world]))[0].tolist()
-        if self._actuator_model is not None or self._sensor_model is not None:
-            exact = self._restart_models(world, exact)
+        rows = np.array([world])
+        self._effects.restart_actuation(np.zeros(1), rows)
+        if not self._effects.senses_exactly:
+            exact = self._effects.restart(np.array([exact]), rows)[0].tolist()
         measured = self._measured
         measured[0][world], measured[1][world], measured[2][world], measured[3][world] = exact
 
     def measure_afresh(self, worlds: np.ndarray) -> None:
         """Measure `worlds` (indices) from their states again, restarting their sensor model."""
-        if self._sensor_model is None:
-            return  # the exact measurement is current: only `step` and `reset_world` move a world
-        measured = self._sensor_model.reset(self._read(self._exact(worlds), worlds), worlds)
+        if self._effects.sensor is None:
+            return  # the measurement is current: only `step` and `reset_world` move a world
+        measured = self._effects.restart(self._exact(worlds), worlds)
         for column in range(4):
             self._measured[column][worlds] = measured[:, column]
 
@@ -220,11 +219,11 @@ class QubeBatch:
         starts (`reset_world`, `measure_afresh`) and returns their measurements. Setting
         it restarts it for every world now.
         """
-        self._sensor_model = sensor_model
+        self._effects.sensor = sensor_model
         if sensor_model is None:
             self._measure()
         else:
-            measured = sensor_model.reset(self._read(self._exact(self._worlds), self._worlds))
+            measured = self._effects.restart(self._exact(self._worlds))
             self._measured = [measured[:, column] for column in range(4)]
 
     def set_actuator_model(self, actuator_model) -> None:
@@ -232,7 +231,7 @@ class QubeBatch:
         voltages, once per `step`; None: as commanded. `actuator_model.reset(volts, rows)`
         restarts worlds `rows` at 0 V in `reset_world`; setting it restarts it for every world
         from the voltages held now."""
-        self._actuator_model = actuator_model
+        self._effects.actuator = actuator_model
         if actuator_model is not None:
             actuator_model.reset(self._voltage.copy())
 
@@ -266,18 +265,24 @@ class QubeBatch:
         self._parameters[world] = qube.write_parameters(model, self._scratch, values, self._ids)
         if overrides is not None and not isinstance(overrides, Mapping):
             self.set_calibrated_effects(world, params.effects_of(overrides))
-        elif self._calibrated is not None:  # the cable's spring was rewritten: put its shape back
+        elif self._cables is not None:  # the cable's spring was rewritten: put its shape back
             qube.write_cable(model, self._ids, self._parameters[world]["cable_stiffness"],
-                             *self._calibrated.cable(world))
+                             *self._cable(world))
 
     def set_calibrated_effects(self, world: int, effects: Mapping[str, float]) -> None:
         """Give `world` a calibration's effects (`parameters.effects_of`; empty: none), as
         `qube.Physics.set_calibrated_effects` gives one Qube, and restart its command history."""
-        if self._calibrated is None:
-            self._calibrated = CalibratedEffects(self.num_worlds, self._nominal_durations[0])
-        self._calibrated.set(world, effects)
+        stages = self._effects
+        if self._cables is None:
+            self._cables = np.zeros((self.num_worlds, 2))
+            stages.calibrated_actuator = CalibratedActuations(self.num_worlds)
+            stages.calibrated_sensor = PendulumEncoderOffsets(self.num_worlds)
+        latency = effects.get("latency_seconds", 0.0) / self._nominal_durations[0]
+        stages.calibrated_actuator.set(world, latency, effects.get("voltage_deadzone", 0.0))
+        stages.calibrated_sensor.offsets[world] = effects.get("pendulum_encoder_offset", 0.0)
+        self._cables[world] = effects.get("cable_rest_angle", 0.0), effects.get("cable_slack", 0.0)
         qube.write_cable(self._own_model(world), self._ids, self._parameters[world]["cable_stiffness"],
-                         *self._calibrated.cable(world))
+                         *self._cable(world))
         self._measure()
 
     def close(self) -> None:
@@ -299,15 +304,10 @@ class QubeBatch:
             self._models[world] = copy.copy(self._template)
         return self._models[world]
 
-    def _restart_models(self, world: int, exact: tuple[float, ...]) -> tuple[float, ...]:
-        """Restart `world`'s actuator model at 0 V and its sensor model from its `exact` state;
-        return its measurement."""
-        rows = np.array([world])
-        if self._actuator_model is not None:
-            self._actuator_model.reset(np.zeros(1), rows)
-        if self._sensor_model is not None:
-            exact = tuple(self._sensor_model.reset(np.array([exact]), rows)[0].tolist())
-        return exact
+    def _cable(self, world: int) -> tuple[float, float]:
+        """`world`'s cable: its rest angle and the half-width of its slack band (rad)."""
+        rest, slack = self._cables[world].tolist()
+        return rest, slack
 
     def _step_for(self, durations: np.ndarray, motor: np.ndarray) -> None:
         """Advance each world by its own duration (s) with its motor voltage (V) held: equal timesteps
@@ -330,65 +330,46 @@ class QubeBatch:
         return np.concatenate([wrap_angle(state[:, self._angle_columns]), state[:, self._velocity_columns]],
                               axis=1)
 
-    def _read(self, exact: np.ndarray, worlds: np.ndarray) -> np.ndarray:
-        """What the encoders of `worlds` read in the `exact` states (len(worlds), 4): the calibrated
-        encoder offsets applied, where a world has them."""
-        return exact if self._calibrated is None else self._calibrated.read(exact, worlds)
-
     def _measure(self) -> None:
         angles = wrap_angle(self._state[:, self._angle_columns])
         velocities = self._state[:, self._velocity_columns]
-        if self._sensor_model is None and self._calibrated is None:
+        if self._effects.senses_exactly:
             self._measured = [angles[:, 0], angles[:, 1], velocities[:, 0], velocities[:, 1]]
         else:
-            measured = self._read(np.concatenate([angles, velocities], axis=1), self._worlds)
-            if self._sensor_model is not None:
-                measured = self._sensor_model(measured)
+            measured = self._effects.measure(np.concatenate([angles, velocities], axis=1))
             self._measured = [measured[:, column] for column in range(4)]
 
 
-class CalibratedEffects:
-    """The calibrated effects of each of `num_worlds` Qubes controlled every `control_period` s: the
-    array form of `qube.CalibratedActuation` (latency, a fraction of a period allowed, then dead
-    zone) and `qube.PendulumEncoderOffset`, and each world's cable (`qube.write_cable` puts it in
-    the world's model); worlds without a calibration unaffected."""
+class CalibratedActuations:
+    """The array form of `qube.CalibratedActuation` for `num_worlds` Qubes, a calibrated actuator
+    stage (`qube_suite.domains.effects`): each world's commands reach its motor `latency` control
+    periods (a fraction allowed) later, through a dead zone; worlds never `set` pass as commanded."""
 
-    def __init__(self, num_worlds: int, control_period: float):
-        self.control_period = control_period
+    def __init__(self, num_worlds: int):
         self.whole = np.zeros(num_worlds, dtype=np.intp)
         self.fraction = np.zeros(num_worlds)
         self.deadzone = np.zeros(num_worlds)
-        self.pendulum_offset = np.zeros(num_worlds)
-        self.cable_rest = np.zeros(num_worlds)
-        self.cable_slack = np.zeros(num_worlds)
         self._history = np.zeros((num_worlds, 2))
         """Commands of each world, oldest first; the last column is the latest."""
 
-    def set(self, world: int, effects: Mapping[str, float]) -> None:
-        """Give `world` the `effects` (`parameters.effects_of`; empty: none) and restart it at 0 V."""
-        latency = effects.get("latency_seconds", 0.0) / self.control_period
+    def set(self, world: int, latency: float, deadzone: float) -> None:
+        """Give `world` a `latency` (control periods) and a `deadzone` (V), and restart it at 0 V."""
         self.whole[world] = int(np.floor(latency))
         self.fraction[world] = latency - self.whole[world]
-        self.deadzone[world] = effects.get("voltage_deadzone", 0.0)
-        self.pendulum_offset[world] = effects.get("pendulum_encoder_offset", 0.0)
-        self.cable_rest[world] = effects.get("cable_rest_angle", 0.0)
-        self.cable_slack[world] = effects.get("cable_slack", 0.0)
+        self.deadzone[world] = deadzone
         needed = int(self.whole.max()) + 2
         if needed > self._history.shape[1]:
             grown = np.zeros((len(self.whole), needed))
             grown[:, -self._history.shape[1]:] = self._history
             self._history = grown
-        self.restart(world)
-
-    def cable(self, world: int) -> tuple[float, float]:
-        """`world`'s cable: its rest angle and the half-width of its slack band (rad)."""
-        return float(self.cable_rest[world]), float(self.cable_slack[world])
-
-    def restart(self, world: int) -> None:
-        """Forget `world`'s earlier commands: 0 V until new ones are due."""
         self._history[world] = 0.0
 
-    def actuate(self, volts: np.ndarray) -> np.ndarray:
+    def reset(self, volts: np.ndarray, rows: np.ndarray | None = None) -> None:
+        """Forget the earlier commands of the worlds `rows` (None: all): `volts` (one per row) until new
+        ones are due."""
+        self._history[slice(None) if rows is None else rows] = np.asarray(volts)[:, None]
+
+    def __call__(self, volts: np.ndarray) -> np.ndarray:
         """The voltages (num_worlds,) reaching the motors when `volts` are commanded now."""
         history = self._history
         history[:, :-1] = history[:, 1:]
@@ -398,10 +379,25 @@ class CalibratedEffects:
                  + self.fraction * history[rows, last - 1 - self.whole])
         return np.sign(mixed) * np.maximum(np.abs(mixed) - self.deadzone, 0.0)
 
-    def read(self, exact: np.ndarray, worlds: np.ndarray) -> np.ndarray:
-        """The encoders' reading of the `exact` states (len(worlds), 4) of `worlds`: the pendulum's
-        angle `pendulum_offset` low, wrapped."""
-        offsets = self.pendulum_offset[worlds]
+
+class PendulumEncoderOffsets:
+    """The array form of `qube.PendulumEncoderOffset` for `num_worlds` Qubes, a calibrated sensor
+    stage (`qube_suite.domains.effects`): each world's pendulum angle read `offsets` (rad) low,
+    wrapped."""
+
+    def __init__(self, num_worlds: int):
+        self.offsets = np.zeros(num_worlds)
+
+    def reset(self, exact: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """The reading of the `exact` states (len(rows), 4) of the worlds `rows` (None: all)."""
+        return self._read(exact, self.offsets if rows is None else self.offsets[rows])
+
+    def __call__(self, exact: np.ndarray) -> np.ndarray:
+        """The reading of every world's `exact` state (num_worlds, 4)."""
+        return self._read(exact, self.offsets)
+
+    @staticmethod
+    def _read(exact: np.ndarray, offsets: np.ndarray) -> np.ndarray:
         if not offsets.any():
             return exact
         read = np.array(exact, dtype=float)

@@ -56,6 +56,7 @@ from dm_control.rl import control
 from qube_suite.angles import wrap_angle
 from qube_suite.arguments import keywords_of
 from qube_suite.devices.qube import parameters as params
+from qube_suite.domains.effects import Effects
 from qube_suite.domains.interface import BoardClockAndLed, MeasuredState
 from qube_suite.hardware import conventions
 from qube_suite.hardware.errors import EncoderGlitchError, HardwareError
@@ -304,9 +305,7 @@ class Physics(BoardClockAndLed, MeasuredState, control.Physics):
         self._led_shown: tuple[float, float, float] | None = None  # on the board; None: unknown
         self._estimate: tuple[float, float, float, float] = (0.0, math.pi, 0.0, 0.0)
         self._measured = self._estimate
-        self._sensor_model = None
-        self._sensor_reset = None
-        self._actuator_model = None
+        self._effects = Effects()
         self._samples = 0
         self._episode_start = 0
         self._twin = None
@@ -348,27 +347,26 @@ class Physics(BoardClockAndLed, MeasuredState, control.Physics):
 
     def step(self, nstep: int = 1) -> None:
         """Wait for the next `nstep` samples, writing the commanded voltage at each."""
-        volts = self._voltage if self._actuator_model is None else self._actuator_model(self._voltage)
+        volts = self._effects.actuate(self._voltage)
         try:
             for _ in range(nstep):
                 self._sample(volts)
         except BaseException as error:
             self._stop_after(error)
             raise
-        self._measured = self._estimate if self._sensor_model is None else self._sensor_model(self._estimate)
+        self._measured = self._effects.measure(self._estimate)
 
     def set_sensor_model(self, sensor_model) -> None:
         """Let tasks see `sensor_model(estimate)` instead of the board's estimate; None: the estimate.
 
         A `reset(estimate)` method, if present, is called when an episode starts.
         """
-        self._sensor_model = sensor_model
-        self._sensor_reset = getattr(sensor_model, "reset", sensor_model)
+        self._effects.sensor = sensor_model
 
     def set_actuator_model(self, actuator_model) -> None:
         """Write `actuator_model(volts)` to the board instead of the commanded voltage; None: as
         commanded. A `reset(volts)` method, if present, is called with 0 V when an episode starts."""
-        self._actuator_model = actuator_model
+        self._effects.actuator = actuator_model
 
     def reset(self) -> None:
         """Get the board ready for an episode: open it the first time, else wake it from idle.
@@ -448,9 +446,8 @@ class Physics(BoardClockAndLed, MeasuredState, control.Physics):
             self._stop_after(error)
             raise
         self._voltage = 0.0
-        if hasattr(self._actuator_model, "reset"):
-            self._actuator_model.reset(0.0)
-        self._measured = self._estimate if self._sensor_reset is None else self._sensor_reset(self._estimate)
+        self._effects.restart_actuation()
+        self._measured = self._effects.restart(self._estimate)
         self._episode_start = self._samples
 
     def end_episode(self) -> None:

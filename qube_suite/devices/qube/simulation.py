@@ -25,6 +25,7 @@ from dm_control.mujoco import wrapper as dm_wrapper
 from qube_suite.angles import wrap_angle
 from qube_suite.arguments import is_number, keywords_of
 from qube_suite.devices.qube import parameters as params
+from qube_suite.domains.effects import Effects
 from qube_suite.domains.interface import MeasuredState
 
 MODEL_PATH = pathlib.Path(__file__).resolve().parent / "model.xml"
@@ -79,8 +80,6 @@ class Physics(MeasuredState, dm_mujoco.Physics):
 
     _measurement_ready = False
     _parameters_written = False
-    _calibrated_actuation = None
-    _encoder_offsets = None
     _cable = None
 
     # -- construction -------------------------------------------------------------
@@ -102,9 +101,9 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         self._options = model.opt
         if not hasattr(self, "_parameters"):
             self._parameters = dict(params.NOMINAL)
-        self._sensor_model = None
-        self._sensor_reset = None
-        self._actuator_model = None
+        if not hasattr(self, "_effects"):
+            self._effects = Effects()
+        self._effects.sensor = self._effects.actuator = None
         self._step_duration_model = None
         self._voltage = float(self._ctrl[0])
         self._measurement_ready = True
@@ -152,8 +151,8 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         new = super().copy(share_model=share_model)
         new._parameters = dict(self._parameters)
         new._led = self._led
-        if hasattr(self, "_effects"):
-            new.set_calibrated_effects(*self._effects)
+        if hasattr(self, "_calibration"):
+            new.set_calibrated_effects(*self._calibration)
         return new
 
     # -- parameters ---------------------------------------------------------------
@@ -181,15 +180,14 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         controllers like randomization's: its latency (s, a fraction of a control period allowed) and
         voltage dead zone between a command and the motor, the cable's rest angle, the pendulum
         encoder's offset. They act before any randomization effects. `control_period`: s."""
-        self._effects = (dict(effects), control_period)
-        period = control_period
+        self._calibration = (dict(effects), control_period)
         latency, deadzone = effects.get("latency_seconds", 0.0), effects.get("voltage_deadzone", 0.0)
-        self._calibrated_actuation = (CalibratedActuation(latency / period, deadzone)
-                                      if latency or deadzone else None)
+        offset = effects.get("pendulum_encoder_offset", 0.0)
+        self._effects.calibrated_actuator = (CalibratedActuation(latency / control_period, deadzone)
+                                             if latency or deadzone else None)
+        self._effects.calibrated_sensor = PendulumEncoderOffset(offset) if offset else None
         self._cable = (effects.get("cable_rest_angle", 0.0), effects.get("cable_slack", 0.0))
         write_cable(self._model_ptr, self._ids, self._parameters["cable_stiffness"], *self._cable)
-        offset = effects.get("pendulum_encoder_offset", 0.0)
-        self._encoder_offsets = None if not offset else PendulumEncoderOffset(offset)
         self._measure_afresh()
 
     # -- the domain interface -------------------------------------------------------
@@ -205,9 +203,7 @@ class Physics(MeasuredState, dm_mujoco.Physics):
     def set_voltage(self, volts: float) -> None:
         """Command `volts` to the motor until the next call."""
         self._voltage = volts
-        if self._calibrated_actuation is not None:
-            volts = self._calibrated_actuation(volts)
-        self._ctrl[0] = volts if self._actuator_model is None else self._actuator_model(volts)
+        self._ctrl[0] = self._effects.actuate(volts)
 
     def set_sensor_model(self, sensor_model) -> None:
         """Measure through `sensor_model`; None: exactly.
@@ -216,16 +212,17 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         [theta, alpha, dtheta, dalpha] (angles wrapped) and returns the measured one
         (4 floats). If it has a `reset(exact) -> measured` method, that is called
         instead whenever the state is set directly (`reset_to`, `forward`,
-        `set_parameters`, and now), so that a model with memory starts afresh.
+        `set_parameters`, and now), so that a model with memory starts afresh. It measures
+        after any calibrated effects (`qube_suite.domains.effects`).
         """
-        self._sensor_model = sensor_model
-        self._sensor_reset = getattr(sensor_model, "reset", sensor_model)
+        self._effects.sensor = sensor_model
         self._measure_afresh()
 
     def set_actuator_model(self, actuator_model) -> None:
         """Drive the motor with `actuator_model(volts) -> volts`, called once per `set_voltage`;
-        None: as commanded. If it has a `reset(volts)` method, `reset` calls it with 0 V."""
-        self._actuator_model = actuator_model
+        None: as commanded. If it has a `reset(volts)` method, `reset` calls it with 0 V. It acts
+        after any calibrated effects (`qube_suite.domains.effects`)."""
+        self._effects.actuator = actuator_model
 
     def set_step_duration_model(self, step_duration_model) -> None:
         """Make each `step` last `step_duration_model(duration) -> duration` (s) instead of its
@@ -305,9 +302,7 @@ class Physics(MeasuredState, dm_mujoco.Physics):
             self._undo_step(before, exact)
             return
         self._exact = exact
-        if self._encoder_offsets is not None:
-            exact = self._encoder_offsets(exact)
-        self._measured = exact if self._sensor_model is None else self._sensor_model(exact)
+        self._measured = self._effects.measure(exact)
 
     def time(self) -> float:
         """Simulated time since the episode started (s)."""
@@ -353,16 +348,11 @@ class Physics(MeasuredState, dm_mujoco.Physics):
 
     def _restart_actuation(self) -> None:
         self._voltage = 0.0
-        if self._calibrated_actuation is not None:
-            self._calibrated_actuation.reset()
-        if hasattr(self._actuator_model, "reset"):
-            self._actuator_model.reset(0.0)
+        self._effects.restart_actuation()
 
     def _measure_afresh(self) -> None:
         self._exact = exact = self._exact_state()
-        if self._encoder_offsets is not None:
-            exact = self._encoder_offsets(exact)
-        self._measured = exact if self._sensor_reset is None else self._sensor_reset(exact)
+        self._measured = self._effects.restart(exact)
 
     def _undo_step(self, before: tuple[float, float, float, float], diverged: Sequence[float]) -> None:
         """Put the Qube back in the state `before` a step that diverged, and say so in `physics_error`."""

@@ -26,6 +26,7 @@ from qube_suite.arguments import is_number, keywords_of
 from qube_suite.devices.qube.simulation import check_control_frequency
 from qube_suite.devices.qube_disk import conventions
 from qube_suite.devices.qube_disk.substitute import plant_overrides
+from qube_suite.domains.effects import Effects
 from qube_suite.domains.interface import BoardClockAndLed
 from qube_suite.hardware import conventions as board_conventions
 from qube_suite.hardware.errors import HardwareError
@@ -100,6 +101,7 @@ class Physics(BoardClockAndLed, control.Physics):
         self._closed = False
         self._voltage = 0.0
         self._applied = 0.0
+        self._effects = Effects()
         self._led: tuple[float, float, float] = RESET_LED
         self._offset = 0.0      # theta of encoder count 0 (rad)
         self._angle = 0.0       # theta of the last sample, from the encoder (rad)
@@ -133,7 +135,7 @@ class Physics(BoardClockAndLed, control.Physics):
         self._voltage = volts
 
     def applied_voltage(self) -> float:
-        """Motor voltage (V) written at the last sample, after the wrapper's clip."""
+        """Motor voltage (V) written at the last sample, after actuator effects and the wrapper's clip."""
         return self._applied
 
     @property
@@ -148,12 +150,18 @@ class Physics(BoardClockAndLed, control.Physics):
 
     def step(self, nstep: int = 1) -> None:
         """Wait for the next `nstep` samples, writing the commanded voltage at each."""
+        volts = self._effects.actuate(self._voltage)
         try:
             for _ in range(nstep):
-                self._sample(self._voltage)
+                self._sample(volts)
         except BaseException:
             self._stop()
             raise
+
+    def set_actuator_model(self, actuator_model) -> None:
+        """Write `actuator_model(volts)` to the board instead of the commanded voltage; None: as
+        commanded. A `reset(volts)` method, if present, is called with 0 V when an episode starts."""
+        self._effects.actuator = actuator_model
 
     # -- episodes -----------------------------------------------------------------------------
 
@@ -200,6 +208,7 @@ class Physics(BoardClockAndLed, control.Physics):
         self._angle, self._speed = float(state[0]), 0.0
         self._filter.reset(np.array([self._angle]), np.zeros(1))
         self._voltage = 0.0
+        self._effects.restart_actuation()
         self._episode_start = self._samples
 
     def end_episode(self) -> None:

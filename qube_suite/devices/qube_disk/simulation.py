@@ -21,6 +21,7 @@ from qube_suite.devices.qube import parameters as shared_parameters
 from qube_suite.devices.qube.simulation import check_control_frequency, physics_timestep
 from qube_suite.devices.qube_disk import parameters as disk_parameters
 from qube_suite.devices.qube_disk.conventions import MAX_SPEED, STATE_NAMES
+from qube_suite.domains.effects import Effects
 
 FOLDER = pathlib.Path(__file__).resolve().parent
 MODEL_PATH = FOLDER / "model.xml"
@@ -35,7 +36,8 @@ class Physics(dm_mujoco.Physics):
 
     The domain interface of the disk (`DiskPhysics` in `qube_suite.devices.qube_disk.tasks`):
     `disk_angle`, `disk_velocity`, `qube_state`, `voltage`, `applied_voltage`, `set_voltage`,
-    `set_led`, `led`, `reset_to`, `time`, `timestep`, `step`, `end_episode`, `drawable`, `close`.
+    `set_led`, `led`, `reset_to`, `time`, `timestep`, `step`, `end_episode`, `drawable`, `close`;
+    randomization's voltage effects through `set_actuator_model`.
     A step after which the disk turns implausibly fast (beyond `MAX_SPEED`, inf or NaN) is undone
     and `physics_error` says so until the next reset.
     """
@@ -57,6 +59,7 @@ class Physics(dm_mujoco.Physics):
         self._led_rgba = model.geom_rgba[model.geom("led").id]
         self._led = tuple(float(x) for x in self._led_rgba[:3])
         self._voltage = 0.0
+        self._effects = Effects()
         if not hasattr(self, "_parameters"):
             self._parameters = dict(disk_parameters.NOMINAL)
 
@@ -95,13 +98,19 @@ class Physics(dm_mujoco.Physics):
         return self._voltage
 
     def applied_voltage(self) -> float:
-        """Motor voltage (V) the simulated motor receives."""
+        """Motor voltage (V) the simulated motor receives: the command after actuator effects."""
         return float(self._data_ptr.ctrl[0])
 
     def set_voltage(self, volts: float) -> None:
         """Command `volts` to the motor until the next call."""
         self._voltage = volts
-        self._data_ptr.ctrl[0] = volts
+        self._data_ptr.ctrl[0] = self._effects.actuate(volts)
+
+    def set_actuator_model(self, actuator_model) -> None:
+        """Drive the motor with `actuator_model(volts) -> volts`, called once per `set_voltage`; None: as
+        commanded. A `reset(volts)` method, if present, is called with 0 V when an episode starts
+        (`qube_suite.domains.effects`)."""
+        self._effects.actuator = actuator_model
 
     def motor_current(self) -> float:
         """Motor current (A), (V - km dtheta) / Rm; inductance neglected."""
@@ -165,6 +174,7 @@ class Physics(dm_mujoco.Physics):
             raise RuntimeError("the simulated disk is closed; make a new environment to run episodes")
         mujoco.mj_resetData(self._model_ptr, self._data_ptr)
         self._voltage = 0.0
+        self._effects.restart_actuation()
         self.physics_error = None
         yield
         mujoco.mj_forward(self._model_ptr, self._data_ptr)
