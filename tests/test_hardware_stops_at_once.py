@@ -163,3 +163,23 @@ def test_sigterm_to_a_plain_script_stops_the_motor_and_closes_the_board(wall_clo
     state = wall_clock_board.state()
     assert code == 128 + signal.SIGTERM
     assert state["closed_cleanly"] and state["applied_voltage"] == 0.0 and not state["amplifier_enabled"]
+
+
+def test_ctrl_c_during_the_collection_at_an_episodes_end_is_not_lost():
+    # the collection that follows an episode runs finalizers; Ctrl-C raised inside one was reported and
+    # dropped, so a loop of episodes ran on after the person pressed Ctrl-C
+    class PressesCtrlC:
+        def __del__(self):
+            signal.raise_signal(signal.SIGINT)
+
+    env = suite.load("qube_hardware", "swingup", task_kwargs={"random": 0},
+                     environment_kwargs={"time_limit": 0.1})
+    with env:
+        env.reset()
+        cycle = PressesCtrlC()
+        cycle.itself = cycle  # freed by a full collection only
+        del cycle
+        with pytest.raises(KeyboardInterrupt):
+            while True:
+                env.step(np.zeros(1))
+        assert_motor_off(env.physics.qube.board)

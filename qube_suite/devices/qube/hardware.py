@@ -46,6 +46,8 @@ from __future__ import annotations
 
 import gc
 import math
+import signal
+import threading
 import weakref
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
@@ -186,7 +188,34 @@ class _FullCollectionsHeld:
             young, middle, _ = gc.get_threshold()
             gc.set_threshold(young, middle, self.threshold)
             self.threshold = None
-            gc.collect()
+            collect_keeping_signals()
+
+
+def collect_keeping_signals() -> None:
+    """A full garbage collection that loses no signal.
+
+    A collection runs the finalizers of what it frees; a signal whose Python handler raises
+    (Ctrl-C's KeyboardInterrupt, the SIGTERM unwinding of `hardware.quanser`) would raise inside
+    one of them, where Python reports the exception and drops it: the program would go on as if
+    the person had not pressed Ctrl-C. So, in the main thread, every Python handler is held by a
+    recorder during the collection, and each signal that came is raised again after it.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        gc.collect()
+        return
+    came: list[int] = []
+    held = {}
+    for signum in signal.valid_signals():
+        handler = signal.getsignal(signum)
+        if callable(handler):
+            held[signum] = signal.signal(signum, lambda number, frame: came.append(number))
+    try:
+        gc.collect()
+    finally:
+        for signum, handler in held.items():
+            signal.signal(signum, handler)
+        for signum in came:
+            signal.raise_signal(signum)
 
 
 FULL_COLLECTIONS = _FullCollectionsHeld()
