@@ -575,14 +575,31 @@ class QuanserWrapper:
         board = self._require_open()
         if self._idle:
             raise RuntimeError("the board is idle: call resume() before action()")
-        volts = self._checked_voltages(voltages)
-        rgb = None if led is None else self._checked_led(led)
+        compiled, given = self._clear_samples, None  # given: (reloaded, overflows) of a sample read
         try:
-            if self._clear_samples is None:
+            if compiled is not None:  # a plain action is checked, clipped, read, reloaded and, where no
+                outcome = compiled.sample_given(  # check below could stop, written in one compiled call
+                    voltages, led, self.max_voltage, self._overflows_seen, self._last_counts,
+                    self.max_missed_samples, self.max_encoder_speed, self.frequency, self.arm_limit)
+                if outcome is None:
+                    return self._after_clear_sample()
+                if outcome is not False:  # read, not clear: the checks below decide
+                    given = outcome
+        except self._board_error as error:
+            self._stop(BoardIOError(f"the board could not deliver a sample: {error_text(error)}"), error)
+        if given is None:  # not read yet: the action's checks first
+            volts = self._checked_voltages(voltages)
+            rgb = None if led is None else self._checked_led(led)
+        else:  # what the action's checks return for a plain action
+            volts, rgb = self._volts, led
+        try:
+            if given is not None:
+                reloaded, overflows = given
+            elif compiled is None:
                 board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
                 reloaded, overflows = None, None  # asked below
             else:  # read, reload and, where no check below could stop, write in one compiled call
-                outcome = self._clear_samples.sample(  # the checks' settings as they are now
+                outcome = compiled.sample(  # the checks' settings as they are now
                     rgb, self._overflows_seen, self._last_counts, self.max_missed_samples,
                     self.max_encoder_speed, self.frequency, self.arm_limit)
                 if outcome is None:
@@ -734,20 +751,23 @@ class QuanserWrapper:
     def _clipped(self, values: list[float], given) -> np.ndarray:
         """`values` (V, one per analog output) clipped to +-max_voltage into the output buffer;
         refused (0 V, ValueError naming `given`) unless all are finite."""
-        limit = self.max_voltage
+        limit, volts = self.max_voltage, self._volts
         for j, value in enumerate(values):
             if not math.isfinite(value):
                 self._refuse(f"voltages must be finite, got {given}")
-            self._volts[j] = -limit if value < -limit else limit if value > limit else value
-        return self._volts
+            volts[j] = -limit if value < -limit else limit if value > limit else value
+        return volts
 
     def _checked_led(self, led) -> tuple[float, ...] | np.ndarray:
         """`led` itself if it is a tuple of floats in [0, 1] (the common case, without building an
         array), else an array of its values; refused (0 V, ValueError) unless one number in [0, 1]
         for each LED output."""
-        if (type(led) is tuple and len(led) == len(self._rgb)
-                and all([type(x) is float and 0.0 <= x <= 1.0 for x in led])):  # NaN fails the comparison
-            return led
+        if type(led) is tuple and len(led) == len(self._rgb):
+            for x in led:  # a loop, not all(...): no generator or list built per sample
+                if not (type(x) is float and 0.0 <= x <= 1.0):  # NaN fails the comparison
+                    break
+            else:
+                return led
         try:
             rgb = np.array(led, dtype=np.float64)  # a copy of its own, contiguous whatever `led` is
         except (TypeError, ValueError):
