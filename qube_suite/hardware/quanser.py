@@ -555,7 +555,7 @@ class QuanserWrapper:
         units and signs. Raises ValueError after writing 0 V, or a `SafetyStopError` after
         stopping the motor (0 V, amplifier disabled: idle).
         """
-        return self._act(voltages, led, returning=False)
+        return self._act(voltages, led, False)
 
     def return_arm(self, voltages: float | Sequence[float] | np.ndarray,
                    led: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -569,7 +569,7 @@ class QuanserWrapper:
         braked by the motor's back-EMF, not driven). Within the limit it is `action`. The device's first
         analog output drives the arm encoder's joint.
         """
-        return self._act(voltages, led, returning=True)
+        return self._act(voltages, led, True)
 
     def _act(self, voltages, led, returning: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         board = self._require_open()
