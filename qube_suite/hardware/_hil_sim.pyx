@@ -1164,7 +1164,10 @@ cdef class ClearSamples:
     times `arm_scale` (rad per count) is within `arm_limit` (rad; None: anywhere) of zero, and
     the board takes writes. Otherwise nothing is written and it returns (watchdog reloaded,
     buffer overflows) for the wrapper's own checks. Errors of the read raise as from
-    `task_read`.
+    `task_read`. `sample_given(voltages, led, max_voltage, ...)` first does the wrapper's action
+    checks for a plain action (a list of one finite float, the LED None or a tuple of three floats
+    in [0, 1]) and its clip to +-`max_voltage`, then `sample`; any other action it leaves, before
+    reading, to the wrapper (returns False).
     """
 
     cdef HIL board

@@ -52,10 +52,11 @@ until the arm is back: `return_arm()` may bring it back, towards the centre only
 gently, and not against whatever holds it). A board that cannot be opened raises `BoardOpenError`. The
 stall warning (digital input 1) is reported by `stall_warning`.
 
-On the substitute board in fast mode (`realtime` False) a sample is read, the watchdog
-reloaded and, if none of these checks could stop at that sample, the voltage and LED
-written in one compiled call (`_hil_sim.ClearSamples`); any other sample goes through the
-checks one by one. Both give the same readings, refusals and stops, bit for bit
+On the substitute board in fast mode (`realtime` False) a plain action (a list of one
+float, the LED None or a tuple of floats) is checked and clipped, its sample read, the
+watchdog reloaded and, if none of these checks could stop at that sample, the voltage and
+LED written in one compiled call (`_hil_sim.ClearSamples`); any other action or sample goes
+through the checks one by one. Both give the same readings, refusals and stops, bit for bit
 (`tests/test_hardware_compiled_samples.py`).
 """
 
