@@ -11,17 +11,20 @@ from qube_suite.hardware import QubeServo2, QubeServo3, conventions
 
 def _random_voltages(rng):
     """What a controller or a user may hand to `action`: mostly good numbers, sometimes not."""
-    kind = rng.integers(16)
+    kind = rng.integers(21)
     volts = float(rng.uniform(-14.0, 14.0)) if rng.random() < 0.2 else float(rng.normal(0.0, 1.0))
     return [volts, [volts], np.array([volts]), np.float32(volts), (volts,), volts, [volts], volts,
-            volts, [volts], volts, volts, math.nan, [math.inf], [volts, volts], "1.0"][kind]
+            volts, [volts], volts, volts, math.nan, [math.inf], [volts, volts], "1.0",
+            [np.float64(volts)], [1], [True], [math.nan], [-math.inf]][kind]
 
 
 def _random_led(rng):
-    kind = rng.integers(20)
+    kind = rng.integers(26)
     colour = tuple(float(x) for x in rng.random(3))
     strided = np.repeat(np.array(colour), 2)[::2]                  # an array that is not contiguous
-    return [colour, (1.5, 0.0, 0.0), (math.nan, 0.0, 0.0), list(colour), strided, *[None] * 15][kind]
+    return [colour, (1.5, 0.0, 0.0), (math.nan, 0.0, 0.0), list(colour), strided, *[None] * 15,
+            (0.0, -0.5, 1.0), (1.0, 0, 0.5), colour[:2], (*colour, 0.0), (np.float64(0.3), 0.2, 0.1),
+            (0.2, True, 0.1)][kind]
 
 
 def _disturb(rng, qube):

@@ -1164,7 +1164,10 @@ cdef class ClearSamples:
     times `arm_scale` (rad per count) is within `arm_limit` (rad; None: anywhere) of zero, and
     the board takes writes. Otherwise nothing is written and it returns (watchdog reloaded,
     buffer overflows) for the wrapper's own checks. Errors of the read raise as from
-    `task_read`.
+    `task_read`. `sample_given(voltages, led, max_voltage, ...)` first does the wrapper's action
+    checks for a plain action (a list of one finite float, the LED None or a tuple of three floats
+    in [0, 1]) and its clip to +-`max_voltage`, then `sample`; any other action it leaves, before
+    reading, to the wrapper (returns False).
     """
 
     cdef HIL board
@@ -1195,6 +1198,33 @@ cdef class ClearSamples:
     def sample(self, led, overflows_seen, list last_counts, max_missed_samples, max_encoder_speed,
                double frequency, arm_limit):
         """One sample: None if it was clear and written, else (watchdog reloaded, buffer overflows)."""
+        return self._sample(led, overflows_seen, last_counts, max_missed_samples, max_encoder_speed,
+                            frequency, arm_limit)
+
+    def sample_given(self, voltages, led, double max_voltage, overflows_seen, list last_counts,
+                     max_missed_samples, max_encoder_speed, double frequency, arm_limit):
+        """`sample` for the action as given to the wrapper, unchecked: False, before anything is read,
+        unless `voltages` is a list of one finite float and `led` None or a tuple of three floats in
+        [0, 1] (what the wrapper's checks let pass as they are); else `volts` gets the voltage clipped
+        to +-`max_voltage` (V), as the wrapper clips it, and `sample(led, ...)` follows."""
+        cdef double value
+        if type(voltages) is not list or len(voltages) != 1 or type(voltages[0]) is not float:
+            return False
+        value = voltages[0]
+        if not isfinite(value):
+            return False
+        if led is not None:
+            if type(led) is not tuple or len(led) != 3:
+                return False
+            for x in led:
+                if type(x) is not float or not (0.0 <= <double>x <= 1.0):  # NaN fails the comparison
+                    return False
+        self.volts[0] = -max_voltage if value < -max_voltage else max_voltage if value > max_voltage else value
+        return self._sample(led, overflows_seen, last_counts, max_missed_samples, max_encoder_speed,
+                            frequency, arm_limit)
+
+    cdef object _sample(self, led, overflows_seen, list last_counts, max_missed_samples, max_encoder_speed,
+                        double frequency, arm_limit):
         cdef HIL b = self.board
         cdef double jump_limit = INFINITY, arm_reach = INFINITY
         if max_encoder_speed is not None:                       # the wrapper's limit, no sample missed

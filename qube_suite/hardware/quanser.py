@@ -52,10 +52,11 @@ until the arm is back: `return_arm()` may bring it back, towards the centre only
 gently, and not against whatever holds it). A board that cannot be opened raises `BoardOpenError`. The
 stall warning (digital input 1) is reported by `stall_warning`.
 
-On the substitute board in fast mode (`realtime` False) a sample is read, the watchdog
-reloaded and, if none of these checks could stop at that sample, the voltage and LED
-written in one compiled call (`_hil_sim.ClearSamples`); any other sample goes through the
-checks one by one. Both give the same readings, refusals and stops, bit for bit
+On the substitute board in fast mode (`realtime` False) a plain action (a list of one
+float, the LED None or a tuple of floats) is checked and clipped, its sample read, the
+watchdog reloaded and, if none of these checks could stop at that sample, the voltage and
+LED written in one compiled call (`_hil_sim.ClearSamples`); any other action or sample goes
+through the checks one by one. Both give the same readings, refusals and stops, bit for bit
 (`tests/test_hardware_compiled_samples.py`).
 """
 
@@ -555,7 +556,7 @@ class QuanserWrapper:
         units and signs. Raises ValueError after writing 0 V, or a `SafetyStopError` after
         stopping the motor (0 V, amplifier disabled: idle).
         """
-        return self._act(voltages, led, returning=False)
+        return self._act(voltages, led, False)
 
     def return_arm(self, voltages: float | Sequence[float] | np.ndarray,
                    led: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -569,20 +570,37 @@ class QuanserWrapper:
         braked by the motor's back-EMF, not driven). Within the limit it is `action`. The device's first
         analog output drives the arm encoder's joint.
         """
-        return self._act(voltages, led, returning=True)
+        return self._act(voltages, led, True)
 
     def _act(self, voltages, led, returning: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         board = self._require_open()
         if self._idle:
             raise RuntimeError("the board is idle: call resume() before action()")
-        volts = self._checked_voltages(voltages)
-        rgb = None if led is None else self._checked_led(led)
+        compiled, given = self._clear_samples, None  # given: (reloaded, overflows) of a sample read
         try:
-            if self._clear_samples is None:
+            if compiled is not None:  # a plain action is checked, clipped, read, reloaded and, where no
+                outcome = compiled.sample_given(  # check below could stop, written in one compiled call
+                    voltages, led, self.max_voltage, self._overflows_seen, self._last_counts,
+                    self.max_missed_samples, self.max_encoder_speed, self.frequency, self.arm_limit)
+                if outcome is None:
+                    return self._after_clear_sample()
+                if outcome is not False:  # read, not clear: the checks below decide
+                    given = outcome
+        except self._board_error as error:
+            self._stop(BoardIOError(f"the board could not deliver a sample: {error_text(error)}"), error)
+        if given is None:  # not read yet: the action's checks first
+            volts = self._checked_voltages(voltages)
+            rgb = None if led is None else self._checked_led(led)
+        else:  # what the action's checks return for a plain action
+            volts, rgb = self._volts, led
+        try:
+            if given is not None:
+                reloaded, overflows = given
+            elif compiled is None:
                 board.task_read(self._task, 1, self._currents, self._encoders, self._digitals, self._others)
                 reloaded, overflows = None, None  # asked below
             else:  # read, reload and, where no check below could stop, write in one compiled call
-                outcome = self._clear_samples.sample(  # the checks' settings as they are now
+                outcome = compiled.sample(  # the checks' settings as they are now
                     rgb, self._overflows_seen, self._last_counts, self.max_missed_samples,
                     self.max_encoder_speed, self.frequency, self.arm_limit)
                 if outcome is None:
@@ -734,20 +752,23 @@ class QuanserWrapper:
     def _clipped(self, values: list[float], given) -> np.ndarray:
         """`values` (V, one per analog output) clipped to +-max_voltage into the output buffer;
         refused (0 V, ValueError naming `given`) unless all are finite."""
-        limit = self.max_voltage
+        limit, volts = self.max_voltage, self._volts
         for j, value in enumerate(values):
             if not math.isfinite(value):
                 self._refuse(f"voltages must be finite, got {given}")
-            self._volts[j] = -limit if value < -limit else limit if value > limit else value
-        return self._volts
+            volts[j] = -limit if value < -limit else limit if value > limit else value
+        return volts
 
     def _checked_led(self, led) -> tuple[float, ...] | np.ndarray:
         """`led` itself if it is a tuple of floats in [0, 1] (the common case, without building an
         array), else an array of its values; refused (0 V, ValueError) unless one number in [0, 1]
         for each LED output."""
-        if (type(led) is tuple and len(led) == len(self._rgb)
-                and all([type(x) is float and 0.0 <= x <= 1.0 for x in led])):  # NaN fails the comparison
-            return led
+        if type(led) is tuple and len(led) == len(self._rgb):
+            for x in led:  # a loop, not all(...): no generator or list built per sample
+                if not (type(x) is float and 0.0 <= x <= 1.0):  # NaN fails the comparison
+                    break
+            else:
+                return led
         try:
             rgb = np.array(led, dtype=np.float64)  # a copy of its own, contiguous whatever `led` is
         except (TypeError, ValueError):

@@ -237,9 +237,13 @@ class QubeTask(base.Task):
 
     def get_observation(self, physics) -> collections.OrderedDict:
         values = self.observation_values(physics)
+        layout = self._observation_layout()
         observation = collections.OrderedDict()
+        if len(layout) == 1 and len(values) == layout[0][1]:  # the state alone: no slicing
+            observation[layout[0][0]] = np.array(values)
+            return observation
         start = 0
-        for key, size in self._observation_layout():
+        for key, size in layout:
             observation[key] = np.array(values[start:start + size])
             start += size
         return observation

@@ -27,6 +27,8 @@ def array_namespace(*values):
 
 def maximum(x, y):
     """The larger of `x` and `y`, elementwise for arrays."""
+    if type(x) is float and type(y) is float:  # one Qube: the hot path, checked first
+        return x if x >= y else y
     if type(x) is np.ndarray or type(y) is np.ndarray:  # type(), not isinstance: the float path is hot
         return np.maximum(x, y)
     namespace = array_namespace(x, y)
@@ -37,6 +39,8 @@ def maximum(x, y):
 
 def cos(x):
     """cos(x), x in rad."""
+    if type(x) is float:
+        return math.cos(x)
     if isinstance(x, np.ndarray):
         return np.cos(x)
     namespace = array_namespace(x)
@@ -45,6 +49,8 @@ def cos(x):
 
 def sin(x):
     """sin(x), x in rad."""
+    if type(x) is float:
+        return math.sin(x)
     if isinstance(x, np.ndarray):
         return np.sin(x)
     namespace = array_namespace(x)
@@ -53,6 +59,8 @@ def sin(x):
 
 def where(condition, x, y):
     """`x` where `condition` holds, else `y`, elementwise for arrays."""
+    if type(condition) is bool:
+        return x if condition else y
     if type(condition) is np.ndarray:
         return np.where(condition, x, y)
     namespace = array_namespace(condition)

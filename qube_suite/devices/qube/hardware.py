@@ -600,12 +600,13 @@ class Physics(BoardClockAndLed, MeasuredState, control.Physics):
     def _sample(self, volts: float, returning: bool = False) -> None:
         qube, led = self.qube, self._led
         act = qube.return_arm if returning else qube.action
-        self.currents, self.encoders, self.others = act(
+        self.currents, encoders, self.others = act(
             [conventions.board_voltage(volts)], None if led == self._led_shown else led)
+        self.encoders = encoders
         self._led_shown = led  # written only when it changes: one board call less per sample
         limit = qube.max_voltage
         self._applied = -limit if volts < -limit else limit if volts > limit else volts
-        self._estimate = self._estimator.estimate(self.encoders)
+        self._estimate = self._estimator.estimate(encoders)
         self._samples += 1
 
     def _return_arm(self) -> None:
