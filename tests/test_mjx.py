@@ -79,6 +79,13 @@ def test_a_task_the_backend_does_not_offer_is_refused_with_its_reason():
     assert set(offered.TASKS) | set(offered.NOT_OFFERED) == set(suite.TASKS_BY_DOMAIN["qube"])
 
 
+def test_every_effect_is_applied_or_refused_with_a_reason():
+    from qube_suite.randomization.catalog import EFFECTS
+
+    assert set(worlds.EFFECTS) | set(worlds.UNSUPPORTED_EFFECTS) == set(EFFECTS)
+    assert not set(worlds.EFFECTS) & set(worlds.UNSUPPORTED_EFFECTS)
+
+
 def test_an_effect_the_backend_does_not_apply_is_refused():
     with pytest.raises(ValueError, match="control_jitter"):
         environment.QubeMjx("swingup", randomization="moderate")
