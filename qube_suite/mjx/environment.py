@@ -70,9 +70,8 @@ class QubeMjx(Env):
                  voltage_limit: float | None = None, seed: int = 0):
         offered.check_task(task)
         qube.check_control_frequency(control_frequency)
-        kwargs = {"observation": "trig"} if voltage_limit is None else {
-            "observation": "trig", "voltage_limit": voltage_limit}
-        self.task = qube_tasks.SUITE[task](**kwargs)
+        limit = {} if voltage_limit is None else {"voltage_limit": voltage_limit}
+        self.task = qube_tasks.SUITE[task](observation="trig", **limit)
         self.task_name = task
         self.config = randomization_config.load(randomization)
         self.control_frequency = float(control_frequency)
@@ -101,7 +100,7 @@ class QubeMjx(Env):
 
     def draw_worlds(self, sys, rng: jax.Array):
         """Brax's `randomization_fn`: as many worlds as `rng` has keys, drawn from the config (world i
-        from `seed + i`), and their `in_axes`. `sys` (the nominal world) is not used."""
+        from `seed + i`), and their `in_axes`. `sys` (this environment's own world) is not used."""
         return world_draws.draw(self.config, int(rng.shape[0]), self.seed, self.control_frequency)
 
     def reset(self, rng: jax.Array) -> State:
@@ -114,11 +113,10 @@ class QubeMjx(Env):
         data = mjx.make_data(self.sys.model)
         data = data.replace(qpos=data.qpos.at[self._positions].set(state[:2]),
                             qvel=data.qvel.at[self._velocities].set(state[2:]))
-        exact = self.exact_state(data)
         rng, noise_key = jax.random.split(rng)
-        measured = self._quantize(exact)
-        measured = self._add_noise(measured, noise_key)
-        info = {"rng": rng, "measured": measured, "filter": measured,
+        quantized = self._quantize(self.exact_state(data))  # the filter starts settled, before the noise
+        measured = self._add_noise(quantized, noise_key)
+        info = {"rng": rng, "measured": measured, "filter": quantized,
                 "commands": jnp.zeros(self._delay_length, data.ctrl.dtype)}
         obs, reward, done = self.rules(measured, data.time)
         return State(pipeline_state=data, obs=obs, reward=jnp.zeros_like(reward), done=jnp.zeros_like(done),
