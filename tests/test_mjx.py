@@ -34,28 +34,6 @@ EDGE_STATES = np.array([
 ])
 
 
-class FloatQube:
-    """The domain interface's accessors on one state, as Python floats (the numpy path)."""
-
-    def __init__(self, state):
-        self._state = [float(x) for x in state]
-
-    def arm_angle(self):
-        return self._state[0]
-
-    def pendulum_angle(self):
-        return self._state[1]
-
-    def arm_velocity(self):
-        return self._state[2]
-
-    def pendulum_velocity(self):
-        return self._state[3]
-
-    def time(self):
-        return 0.0
-
-
 @pytest.mark.parametrize("task", offered.TASKS)
 def test_every_offered_tasks_rules_agree_with_the_numpy_task(task):
     env = environment.QubeMjx(task)
@@ -64,7 +42,7 @@ def test_every_offered_tasks_rules_agree_with_the_numpy_task(task):
         [-1.7, -math.pi, -20, -40], [1.7, math.pi, 20, 40], (40, 4))])
     for state in states:
         obs, reward, done = env.rules(jnp.asarray(state, jnp.float32), jnp.float32(0.0))
-        qube_ = FloatQube(np.float32(state))
+        qube_ = environment.MeasuredQube(np.float32(state).tolist(), 0.0)  # Python floats: the numpy path
         expected_obs = np.array(numpy_task.observation_values(qube_))
         np.testing.assert_allclose(np.asarray(obs), expected_obs, rtol=1e-5, atol=1e-5)
         assert float(reward) == pytest.approx(float(numpy_task.get_reward(qube_)), abs=1e-5), state

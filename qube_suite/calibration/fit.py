@@ -205,15 +205,30 @@ def equations(x: np.ndarray, s: Signals, model: Model | None = None) -> tuple[np
 
 def pendulum_balances(p: dict[str, np.ndarray], s: Signals, column: Column) -> tuple[np.ndarray, np.ndarray]:
     """The arm's and the pendulum's momentum balances (see the module)."""
-    th, dth, dal = column(s.theta), column(s.dtheta), column(s.dalpha)
+    th, dth = column(s.theta), column(s.dtheta)
+    arm_momentum, pendulum_momentum, pendulum_torque = rigid_body(
+        p, s, column, p["pendulum_mass"], parameters.NOMINAL["rotor_inertia"])
+    motor_torque = p["motor_torque_constant"] * column(s.current_after)
+    arm_torque = (-p["arm_damping"] * dth - p["arm_friction"] * np.sign(dth)
+                  - p["cable_stiffness"] * th + p["arm_torque_offset"])
+    arm = balance(arm_momentum, arm_torque, motor_torque, s.starts[s.arm_sliding], s.sample_time)
+    pendulum = balance(pendulum_momentum, pendulum_torque, 0.0, s.starts[s.pendulum_sliding], s.sample_time)
+    return arm, pendulum
+
+
+def rigid_body(p: dict[str, np.ndarray], s: Signals, column: Column, pendulum_mass, rotor_inertia
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The Furuta pendulum's arm and pendulum momenta (N m s) and the pendulum's torque (N m:
+    inertial, gravity, damping, Coulomb) at the signals `s`, for the pendulum length, encoder offset
+    and pendulum damping and friction in `p`, a pendulum mass (kg) and rotor inertia (kg m^2)."""
+    dth, dal = column(s.dtheta), column(s.dalpha)
     al = column(s.alpha) + p["pendulum_encoder_offset"]
     sin, cos = np.sin(al), np.cos(al)
-    mp, lp = p["pendulum_mass"], p["pendulum_length"]
-    lr = parameters.NOMINAL["arm_length"]
+    mp, lp, lr = pendulum_mass, p["pendulum_length"], parameters.NOMINAL["arm_length"]
     half = 0.5 * lp
     axial = 0.5 * mp * parameters.PENDULUM_ROD_RADIUS**2
     transverse = mp * lp * lp / 12.0
-    base = (parameters.arm_inertia(parameters.NOMINAL["arm_mass"], lr) + parameters.NOMINAL["rotor_inertia"]
+    base = (parameters.arm_inertia(parameters.NOMINAL["arm_mass"], lr) + rotor_inertia
             + mp * lr * lr + axial)
     swing = mp * half * half + transverse - axial
     coupling = mp * lr * half
@@ -221,15 +236,10 @@ def pendulum_balances(p: dict[str, np.ndarray], s: Signals, column: Column) -> t
     m12 = -coupling * cos
     arm_momentum = (base + swing * sin * sin) * dth + m12 * dal
     pendulum_momentum = m12 * dth + m22 * dal
-    motor_torque = p["motor_torque_constant"] * column(s.current_after)
-    arm_torque = (-p["arm_damping"] * dth - p["arm_friction"] * np.sign(dth)
-                  - p["cable_stiffness"] * th + p["arm_torque_offset"])
     pendulum_torque = (swing * sin * cos * dth * dth + coupling * sin * dth * dal
                        + mp * parameters.NOMINAL["gravity"] * half * sin
                        - p["pendulum_damping"] * dal - p["pendulum_friction"] * np.sign(dal))
-    arm = balance(arm_momentum, arm_torque, motor_torque, s.starts[s.arm_sliding], s.sample_time)
-    pendulum = balance(pendulum_momentum, pendulum_torque, 0.0, s.starts[s.pendulum_sliding], s.sample_time)
-    return arm, pendulum
+    return arm_momentum, pendulum_momentum, pendulum_torque
 
 
 PENDULUM = Model(
@@ -422,35 +432,20 @@ def voltage_equations(x: np.ndarray, s: Signals, voltage: np.ndarray) -> tuple[n
     values = x * (VOLTAGE_SCALES if x.ndim == 1 else VOLTAGE_SCALES[:, None])
     p = dict(zip(VOLTAGE_NAMES, values, strict=True))
     column = (lambda a: a[:, None]) if x.ndim > 1 else (lambda a: a)
-    th, dth, dal = column(s.theta), column(s.dtheta), column(s.dalpha)
-    al = column(s.alpha) + p["pendulum_encoder_offset"]
-    sin, cos = np.sin(al), np.cos(al)
-    mp, lp, lr = parameters.NOMINAL["pendulum_mass"], p["pendulum_length"], parameters.NOMINAL["arm_length"]
-    half = 0.5 * lp
-    axial = 0.5 * mp * parameters.PENDULUM_ROD_RADIUS**2
-    transverse = mp * lp * lp / 12.0
-    base = (parameters.arm_inertia(parameters.NOMINAL["arm_mass"], lr) + p["rotor_inertia"]
-            + mp * lr * lr + axial)
-    swing = mp * half * half + transverse - axial
-    coupling = mp * lr * half
-    m22 = mp * half * half + transverse
-    m12 = -coupling * cos
+    th, dth = column(s.theta), column(s.dtheta)
+    arm_momentum, pendulum_momentum, pendulum_torque = rigid_body(
+        p, s, column, parameters.NOMINAL["pendulum_mass"], p["rotor_inertia"])
     kt = p["motor_torque_constant"]
     gain = kt / parameters.NOMINAL["motor_resistance"]
     middle_speed = 0.5 * (dth + np.concatenate([dth[1:], dth[-1:]]))
     drive = column(voltage)
     drive = np.sign(drive) * np.maximum(np.abs(drive) - p["voltage_deadzone"], 0.0)
     motor_torque = gain * (drive - kt * middle_speed)
-    arm_momentum = (base + swing * sin * sin) * dth + m12 * dal
-    pendulum_momentum = m12 * dth + m22 * dal
     stiffness, slack = p["cable_stiffness"], p["cable_slack"]
     rest = p["arm_torque_offset"] / np.maximum(stiffness, 1e-12)
     slackening = stiffness * np.clip(th - rest, -slack, slack)
     arm_torque = (-p["arm_damping"] * dth - p["arm_friction"] * np.sign(dth)
                   - stiffness * th + p["arm_torque_offset"] + slackening)
-    pendulum_torque = (swing * sin * cos * dth * dth + coupling * sin * dth * dal
-                       + mp * parameters.NOMINAL["gravity"] * half * sin
-                       - p["pendulum_damping"] * dal - p["pendulum_friction"] * np.sign(dal))
     arm = balance(arm_momentum, arm_torque, motor_torque, s.starts[s.arm_sliding], s.sample_time)
     pendulum = balance(pendulum_momentum, pendulum_torque, 0.0, s.starts[s.pendulum_sliding], s.sample_time)
     return arm, pendulum

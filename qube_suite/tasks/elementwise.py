@@ -39,22 +39,20 @@ def maximum(x, y):
 
 def cos(x):
     """cos(x), x in rad."""
-    if type(x) is float:
-        return math.cos(x)
-    if isinstance(x, np.ndarray):
-        return np.cos(x)
-    namespace = array_namespace(x)
-    return math.cos(x) if namespace is None else namespace.cos(x)
+    return math.cos(x) if type(x) is float else _elementwise("cos", x)
 
 
 def sin(x):
     """sin(x), x in rad."""
-    if type(x) is float:
-        return math.sin(x)
+    return math.sin(x) if type(x) is float else _elementwise("sin", x)
+
+
+def _elementwise(name: str, x):
+    """`math.<name>` of a number, or the array namespace's `<name>` of an array, elementwise."""
     if isinstance(x, np.ndarray):
-        return np.sin(x)
+        return getattr(np, name)(x)
     namespace = array_namespace(x)
-    return math.sin(x) if namespace is None else namespace.sin(x)
+    return getattr(math if namespace is None else namespace, name)(x)
 
 
 def where(condition, x, y):
