@@ -1,16 +1,17 @@
 """The JAX backend (`qube_suite.mjx`) against the numpy vector environment, and training on it.
 
-    python benchmarks/jax_backend.py throughput [--worlds 256 1024] [--steps 100] [--json FILE]
+    python benchmarks/jax_backend.py throughput [--worlds 256 1024] [--steps 100] [--presets none sim2real]
     python benchmarks/jax_backend.py train --task swingup --randomization sim2real --steps 150000000 \
-        --out runs/jax_swingup [--json FILE]
+        --out runs/jax_swingup [--set num_updates_per_batch=4 ...] [--json FILE]
 
 `throughput`: env steps per second with a policy network in the loop (Brax's PPO
 policy, randomly initialised, deterministic actions): MJX worlds batched with
 `jax.vmap` inside one `jax.lax.scan` per measurement (compilation excluded), and
 in the same run the numpy vector environment (`gymnasium.make_vec`, native batch of
 MuJoCo rollouts) with the same number of worlds, the same task and preset and the
-same network run by numpy (the peer); nominal plant and `sim2real`.
-`train`: Brax PPO on the backend (`qube_suite.mjx.training`), the policy of every
+same network run by numpy (the peer); by default the nominal plant and `sim2real`.
+`train`: Brax PPO on the backend (`qube_suite.mjx.training`; `--set` changes one of its
+`HYPERPARAMETERS`), the policy of every
 evaluation kept as `snapshots/<steps>.npz` for evaluation on the numpy domains
 (`qube-suite eval`, `benchmarks/held_out.py`); end-to-end env steps per second
 between the first and last evaluation (compilation excluded) and the wall times.
@@ -31,6 +32,7 @@ from qube_suite.mjx import training
 from qube_suite.mjx.environment import QubeMjx
 
 PRESETS = ("none", "sim2real")
+"""The presets `throughput` measures unless told others."""
 
 
 def mjx_rate(preset: str, worlds: int, steps: int) -> float:
@@ -97,7 +99,7 @@ def _identity_normalizer(size: int):
 
 def throughput(args) -> dict:
     rows = []
-    for preset in PRESETS:
+    for preset in args.presets:
         for worlds in args.worlds:
             row = {"preset": preset, "worlds": worlds,
                    "mjx_steps_per_s": mjx_rate(preset, worlds, args.steps)}
@@ -109,8 +111,22 @@ def throughput(args) -> dict:
     return {"throughput": rows}
 
 
+def hyperparameter(text: str) -> tuple[str, int | float]:
+    """`KEY=VALUE` of `--set` as (key, number); argparse reports a malformed one."""
+    key, equals, value = text.partition("=")
+    if not equals or key not in training.HYPERPARAMETERS:
+        raise argparse.ArgumentTypeError(f"expected KEY=NUMBER with KEY one of "
+                                         f"{', '.join(training.HYPERPARAMETERS)}, got {text!r}")
+    try:
+        return key, int(value) if value.lstrip("-").isdigit() else float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{key}: expected a number, got {value!r}") from None
+
+
 def train(args) -> dict:
-    hyperparameters = {} if args.num_envs is None else {"num_envs": args.num_envs}
+    hyperparameters = dict(args.set)
+    if args.num_envs is not None:
+        hyperparameters["num_envs"] = args.num_envs
     if args.num_evals is not None:
         hyperparameters["num_evals"] = args.num_evals
     result = training.train(args.task, steps=args.steps, randomization=args.randomization, seed=args.seed,
@@ -118,6 +134,7 @@ def train(args) -> dict:
     (first_steps, _, first_time), (last_steps, _, last_time) = result.evaluations[1], result.evaluations[-1]
     rate = (last_steps - first_steps) / (last_time - first_time) if last_time > first_time else float("nan")
     return {"train": {"task": args.task, "randomization": args.randomization, "steps": args.steps,
+                      "hyperparameters": hyperparameters,
                       "wall_time_s": result.wall_time, "evaluations": result.evaluations,
                       "end_to_end_steps_per_s": rate, "policy": str(result.policy_path)}}
 
@@ -131,6 +148,7 @@ def main() -> None:
     rate.add_argument("--steps", type=int, default=100)
     rate.add_argument("--numpy-worlds-max", type=int, default=4096,
                       help="largest world count the numpy peer runs (it scales linearly)")
+    rate.add_argument("--presets", nargs="+", default=list(PRESETS), help="randomization presets to measure")
     learn = commands.add_parser("train")
     learn.add_argument("--task", default="swingup")
     learn.add_argument("--randomization", default="none")
@@ -139,6 +157,8 @@ def main() -> None:
     learn.add_argument("--num-envs", type=int, default=None)
     learn.add_argument("--num-evals", type=int, default=None)
     learn.add_argument("--out", default="runs/jax")
+    learn.add_argument("--set", type=hyperparameter, action="append", default=[], metavar="KEY=VALUE",
+                       help="change one of Brax PPO's settings (qube_suite.mjx.training.HYPERPARAMETERS)")
     for command in (rate, learn):
         command.add_argument("--json", default=None, help="append the result to this JSON-lines file")
     args = parser.parse_args()

@@ -198,6 +198,16 @@ def test_device_put_replicated_stacks_one_copy_per_device():
     np.testing.assert_array_equal(replicated["b"][0][0], np.ones((2, 2)))
 
 
+def test_replicated_arrays_have_the_type_of_brax_pmapped_outputs():
+    """Else Brax's training epoch and evaluation compile again when the first epoch's outputs come
+    back as their inputs (an array's type carries its mesh's axis names)."""
+    from brax.training.agents.ppo import train as ppo_train
+
+    replicated = brax_compat.device_put_replicated({"a": jnp.arange(3.0)}, jax.devices())["a"]
+    mapped = jax.pmap(lambda leaf: 2.0 * leaf, axis_name=ppo_train._PMAP_AXIS_NAME)(replicated)
+    assert jax.typeof(mapped) == jax.typeof(replicated)
+
+
 @pytest.mark.slow
 def test_training_on_the_backend_writes_a_policy_the_numpy_domains_run(tmp_path):
     from qube_suite import evaluate

@@ -13,10 +13,16 @@ import jax.numpy as jnp
 import numpy as np
 
 
+PMAP_AXIS = "i"
+"""The device axis's name: Brax's PPO maps its training over the devices under this name, and an
+array carries its mesh's axis names in its type, so copies made under another name would make the
+training and evaluation functions compile again when they meet the arrays of the first pmapped call."""
+
+
 def device_put_replicated(tree, devices):
     """`tree` with each leaf stacked `len(devices)` times along a new first axis, slice i on devices[i]."""
-    mesh = jax.sharding.Mesh(np.array(devices), ("devices",))
-    sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("devices"))
+    mesh = jax.sharding.Mesh(np.array(devices), (PMAP_AXIS,))
+    sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec(PMAP_AXIS))
     return jax.tree.map(lambda leaf: jax.device_put(jnp.stack([jnp.asarray(leaf)] * len(devices)), sharding),
                         tree)
 
