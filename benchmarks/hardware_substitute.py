@@ -10,6 +10,10 @@ with a constant 0.1 V, the step that calibration, training and the held-out stud
 run, episode resets excluded, in wall and CPU time; next to it the same step with the
 wrapper's compiled samples (`_hil_sim.ClearSamples`) turned off, every sample going
 through the board calls and checks one by one, as on a real board.
+Whole episodes: the same steps over whole 8 s episodes, each episode's last step (which
+ends the episode) included and the resets left out, in CPU time; next to it the same
+with Python's full garbage collections held off during each episode and run at its end,
+as on a board paced by the wall clock (the fast substitute does not hold them off).
 Real-time mode: the period between successive `action` returns at 250 Hz for 5 s,
 as median, 99th percentile and maximum, with the samples the board counted as
 missed.
@@ -25,6 +29,7 @@ import time
 import numpy as np
 
 from qube_suite import suite
+from qube_suite.devices.qube.hardware import FULL_COLLECTIONS
 from qube_suite.hardware import QubeServo2, _hil_sim
 
 FAST_SECONDS = 60.0      # simulated time per fast-mode measurement
@@ -83,6 +88,29 @@ def fast_env_step(steps: int = 5000, compiled: bool = True) -> tuple[float, floa
     return wall, cpu
 
 
+def episode_step(episodes: int = 4, held: bool = False) -> float:
+    """CPU seconds per dm_env step of qube_hardware swingup over whole episodes (the step that ends
+    each included, resets excluded); with `held`, full collections held off during each episode as
+    on a paced board."""
+    env = suite.load("qube_hardware", "swingup")
+    action = np.array([0.1])
+    cpu, steps = 0.0, 0
+    try:
+        for _ in range(episodes):
+            env.reset()
+            if held:
+                FULL_COLLECTIONS.hold(env.physics)    # released when the episode ends
+            start = time.process_time()
+            while True:
+                steps += 1
+                if env.step(action).last():
+                    break
+            cpu += time.process_time() - start
+    finally:
+        env.close()
+    return cpu / steps
+
+
 def realtime_periods(frequency: float) -> tuple[np.ndarray, int]:
     """Periods (s) between action returns in real-time mode, and the missed samples."""
     steps = int(REALTIME_SECONDS * frequency)
@@ -106,6 +134,10 @@ def main() -> None:
     for label, compiled in (("compiled samples", True), ("board calls one by one", False)):
         times = fast_env_step(compiled=compiled)
         print(f"{label:>22s}" + "".join(f" {1e6 * t:8.1f} us {1 / (t * 250.0):4.0f}x" for t in times))
+    print("\nWhole episodes, CPU time per step (each episode's end included, resets excluded)")
+    for label, held in (("as the substitute runs", False), ("collections held, then run", True)):
+        t = episode_step(held=held)
+        print(f"{label:>27s} {1e6 * t:8.1f} us {1 / (t * 250.0):4.0f}x")
     print()
     periods, missed = realtime_periods(250.0)
     ms = 1e3 * periods

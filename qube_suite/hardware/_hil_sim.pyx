@@ -213,6 +213,8 @@ cdef struct Plant:
     double x[5]         # theta, alpha (unwrapped), dtheta, dalpha, motor current; package signs
     double t            # simulated time (s)
     double sway         # the bench's torque on the pendulum now (N m)
+    double sway_step, sway_decay, sway_scale    # the sway's decay and innovation scale over a substep of
+                                                # sway_step s (0: not computed for these parameters)
     unsigned long long random_state     # splitmix64 state of the board's random stream
     double stall_timer
     bint stall_detected, stall_error, fault, arm_blocked, diverged
@@ -390,13 +392,14 @@ cdef void _substep(const Params* p, Plant* s, double applied, bint on, double h)
     cdef double y[5]
     cdef double start[5]
     cdef double v = ARM_SIGN * applied
-    cdef double decay
     cdef int j
     for j in range(5):
         start[j] = s.x[j]
     if p.vibration > 0.0:           # exact discretisation of the Gauss-Markov sway over h
-        decay = exp(-h / p.vibration_time)
-        s.sway = decay * s.sway + p.vibration * sqrt(1.0 - decay * decay) * _normal(&s.random_state)
+        if h != s.sway_step:
+            s.sway_step, s.sway_decay = h, exp(-h / p.vibration_time)
+            s.sway_scale = p.vibration * sqrt(1.0 - s.sway_decay * s.sway_decay)
+        s.sway = s.sway_decay * s.sway + s.sway_scale * _normal(&s.random_state)
     else:
         s.sway = 0.0
     _derivative(p, s.x, v, on, s.sway, k1)
@@ -948,6 +951,7 @@ cdef class HIL:
         self.p.Fr, self.p.Fp = values["arm_friction"], values["pendulum_friction"]
         self.p.kc = values["cable_stiffness"]
         self.p.vibration, self.p.vibration_time = values["bench_vibration"], values["vibration_time"]
+        self.s.sway_step = 0.0
         self.p.v_limit, self.p.i_limit = values["amplifier_voltage_limit"], values["current_limit"]
         self.p.stall_v, self.p.stall_w, self.p.stall_t = (values["stall_voltage"], values["stall_speed"],
                                                           values["stall_time"])

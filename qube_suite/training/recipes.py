@@ -158,7 +158,7 @@ RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
 JAX_RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
     Recipe("swingup", (Stage("swingup", "swingup", 60_000_000, 2, randomization="sim2real_frictionless",
                              backend="jax"),),
-           "1838 in simulation, 1866 on the substitute, 100 % success; 92 s on one H200 "
+           "1825 in simulation, 1850 on the substitute, 100 % success; 106 s on one H200 "
            "(docs/gpu-training.md)"),
 )}
 """The recipes of the JAX backend (`qube-suite train --task T --backend jax`), by name."""

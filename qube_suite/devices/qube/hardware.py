@@ -153,15 +153,17 @@ sway."""
 
 
 class _FullCollectionsHeld:
-    """Python's full (oldest-generation) garbage collections held off while a board drives.
+    """Python's full (oldest-generation) garbage collections held off while a board paced by the wall
+    clock drives.
 
     A full collection stops the program for as long as its heap takes to scan (up to 0.1 s in
     a process that has loaded MuJoCo and torch): longer than a sample, enough to trip the
-    missed-sample stop or the watchdog. While any board drives, the oldest generation's
+    missed-sample stop or the watchdog. While any such board drives, the oldest generation's
     threshold is raised out of reach (young generations, which are fast, still collect); when
     the last holder releases it, at the end of its episode, at its close, or when it is
     garbage-collected or the interpreter exits without either, the threshold comes back and a
-    full collection runs while the motor is off.
+    full collection runs while the motor is off. The fast substitute's time stands still while
+    the program does: there a collection costs no sample, and none is held off.
     """
 
     def __init__(self):
@@ -412,7 +414,8 @@ class Physics(BoardClockAndLed, MeasuredState, control.Physics):
                                "suite.load, or hand them in with set_reset_controllers()")
         if self.qube.is_open and not self.qube.is_idle:
             self.end_episode()
-        FULL_COLLECTIONS.hold(self)
+        if self.qube.realtime:
+            FULL_COLLECTIONS.hold(self)
         try:
             if not self.qube.is_open:
                 self.qube.open(zero_encoders=self._zero_at_open)
