@@ -344,7 +344,7 @@ def test_a_hardware_domain_without_reset_controllers_refuses_to_reset():
 def test_full_garbage_collections_wait_while_a_board_paced_by_the_wall_clock_drives():
     threshold = gc.get_threshold()
     with load("swingup", realtime=True) as env:
-        env.physics.qube.max_missed_samples = None          # the hold-off is under test, not the host's timing
+        env.physics.qube.max_missed_samples = None  # the hold-off is under test, not the host's timing
         env.reset()
         assert gc.get_threshold()[2] > 10**9                # no full collection mid-episode
         timestep = env.step(np.zeros(1))

@@ -12,7 +12,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-
 PMAP_AXIS = "i"
 """The device axis's name: Brax's PPO maps its training over the devices under this name, and an
 array carries its mesh's axis names in its type, so copies made under another name would make the
