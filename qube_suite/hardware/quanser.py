@@ -104,6 +104,11 @@ SDK_HELP = (
     "(on Windows <SDK> is %QSDK_DIR%). Without a Qube, use board='simulated'.")
 
 
+AMPLIFIER_RANGE = 15.0
+"""Largest `max_voltage` (V) on a Qube: its amplifier range, +-15 V (see `plant.py`); a device declares
+its own (`Device.amplifier_range`)."""
+
+
 @dataclasses.dataclass(frozen=True)
 class Device:
     """A Quanser device's channels, as the wrapper uses them."""
@@ -121,6 +126,7 @@ class Device:
     arm_encoder: int | None = 0                 # encoder channel watched by `arm_limit`
     card_options: str = ""                      # set by set_card_specific_options at open ("" = none)
     radians_per_count: tuple[float, ...] | None = None  # per encoder input; None: a Qube's, 2 pi / 2048 each
+    amplifier_range: float = AMPLIFIER_RANGE    # the amplifier's largest output (V): the largest max_voltage
 
     @property
     def encoder_scales(self) -> tuple[float, ...]:
@@ -183,9 +189,6 @@ rest falls within a few ms, as the arm takes up speed."""
 RETURN_SLACK = math.radians(5.0)
 """How much farther out (rad) than at the last sample of 0 V the arm may get while `return_arm`
 pushes it inwards beyond `arm_limit` before the return stops (the motor would be driving it out)."""
-
-AMPLIFIER_RANGE = 15.0
-"""Largest `max_voltage` (V): the Qube's amplifier range, +-15 V (see `plant.py`)."""
 
 LED_OFF_STATE = (1.0, 0.0, 0.0)
 """The LED's colour after `close()`: red."""
@@ -358,8 +361,8 @@ class QuanserWrapper:
             raise ValueError(f"watchdog_timeout must be at most {MAX_WATCHDOG_TIMEOUT:g} s "
                              "(MAX_WATCHDOG_TIMEOUT: longer leaves a dead process's motor driven too long), "
                              f"got {watchdog_timeout:g}")
-        if max_voltage > AMPLIFIER_RANGE:
-            raise ValueError(f"max_voltage must be at most the amplifier's {AMPLIFIER_RANGE:g} V, "
+        if max_voltage > device.amplifier_range:
+            raise ValueError(f"max_voltage must be at most the amplifier's {device.amplifier_range:g} V, "
                              f"got {max_voltage}")
         if frequency > MAX_FREQUENCY:
             raise ValueError(f"frequency must be at most {MAX_FREQUENCY:g} Hz, got {frequency}")
