@@ -299,7 +299,6 @@ class Pitch(Aero2Task):
     v0: first release.
     """
 
-    follows_target = True
 
     def __init__(self, target: str | os.PathLike = "steps", target_amplitude: float | None = None,
                  target_hold_time: float | None = None, target_frequency: float | None = None,
@@ -394,7 +393,6 @@ class Track(Aero2Task):
     v0: first release.
     """
 
-    follows_target = True
     needs_yaw = True
 
     def __init__(self, pitch_target: str | os.PathLike = "steps", pitch_target_amplitude: float | None = None,
