@@ -17,5 +17,6 @@ DEVICE = Device(
     gymnasium_prefix="Aero2",
     feature_map="plain",
     controllers="qube_suite.devices.aero2.controllers",
+    substitute="qube_suite.devices.aero2.substitute",
 )
 """The Aero 2: Gymnasium ids `QubeSuite/Aero2<Task>[Hardware]-v0`."""

@@ -29,7 +29,8 @@ exit (close, an exception, Ctrl-C inside a board call, garbage collection, a tru
 episode) writing 0 V to both with both amplifiers off. The Qube's arm limit has no counterpart: the
 beam's pitch stops are mechanical and the yaw turns freely on its slip ring.
 
-An episode starts level and at rest at the yaw it asks for: `reset_to(state)` drives both thrusters
+An episode starts level and at rest at the yaw it asks for (a board holds no other pitch at rest: a
+start's pitch, rates and rotor speeds are not reached): `reset_to(state)` drives both thrusters
 (`reset_controller`, at most `RESET_VOLTAGE`, LED yellow) until the beam is level within
 `PITCH_TOLERANCE`, the yaw within `YAW_TOLERANCE` of the start's (2-DOF), then holds 0 V until the
 body and the rotors have rested for `REST_TIME`. One that does not get there within
@@ -291,16 +292,14 @@ class Physics(BoardClockAndLed, control.Physics):
         """Nothing to do: `reset_to` leaves the Aero at the episode's start."""
 
     def reset_to(self, state: Sequence[float]) -> None:
-        """Bring the Aero level and at rest at yaw `state[1]` (see the module docstring). Raises
-        ValueError for a start off level (beyond `PITCH_TOLERANCE`) or, pitch-only, off yaw 0: a board
-        starts its episodes level; the start's rates and rotor speeds are taken as 0 (at rest)."""
+        """Bring the Aero level and at rest at yaw `state[1]` (see the module docstring): as close to
+        `state` as a board gets, which holds no other pitch at rest (the start's pitch, rates and rotor
+        speeds are taken as 0). Raises ValueError for anything but six finite numbers, or a yaw other
+        than 0 when it is locked (pitch-only)."""
         state = np.asarray(state, dtype=np.float64)
         if state.shape != (len(conventions.STATE_NAMES),) or not np.isfinite(state).all():
             raise ValueError(f"an Aero state is {len(conventions.STATE_NAMES)} finite numbers "
                              f"{conventions.STATE_NAMES}, got {state!r}")
-        if abs(state[0]) > PITCH_TOLERANCE:
-            raise ValueError(f"an Aero on a board starts its episodes level (pitch within "
-                             f"{math.degrees(PITCH_TOLERANCE):g} degrees), not at pitch {state[0]:.3f} rad")
         if self.configuration == "pitch_only" and state[1] != 0.0:
             raise ValueError(f"the pitch-only Aero's yaw is locked: the start's yaw must be 0, "
                              f"got {state[1]}")

@@ -187,7 +187,7 @@ class Aero2Plant:
         arm, kf = p["thrust_arm"], p["thrust_constant"]
         s, c = math.sin(pitch), math.cos(pitch)
         if self.configuration == "2dof":
-            # Gyroscopic torque -(Omega x h): h = spin (0, w1, w0), Omega = (dyaw s, -dpitch, dyaw c), body axes
+            # gyroscopic torque -(Omega x h), h = spin (0, w1, w0), Omega = (dyaw s, -dpitch, dyaw c)
             ox, oy, oz = dyaw * s, -dpitch, dyaw * c
             gx = -(oy * spin * w0 - oz * spin * w1)
             gy = -(oz * 0.0 - ox * spin * w0)
