@@ -17,8 +17,9 @@ the same channel numbers):
 | other input 14002, 14003 | the pitch and yaw tachometers | counts/s |
 | other output 11000-11002 | LED red, green, blue | 0..1 |
 
-Read every sample: both currents, the pitch and yaw encoders, the four tachometers (the motor
-encoders' positions and the inertial unit are not needed). Board signs are taken as the package's:
+Read every sample: both currents, the four encoders, the four tachometers (not the inertial unit).
+The wrapper's glitch check holds every encoder to `max_encoder_speed` (500 rad/s, above the rotors'
+414 rad/s at 24 V). Board signs are taken as the package's:
 positive counts with pitch up and yaw counter-clockwise, positive voltage spinning a rotor positive
 (Quanser's Aero 2 class converts every count with a positive factor).
 
@@ -58,9 +59,10 @@ from qube_suite.hardware.quanser import SIMULATED, Device, QuanserWrapper
 
 AERO2 = Device(
     board_type=substitute.CARD_TYPE, analog_outputs=(0, 1), digital_outputs=(0, 1), analog_inputs=(0, 1),
-    encoder_inputs=(2, 3), other_inputs=(14000, 14001, 14002, 14003), led_outputs=(11000, 11001, 11002),
+    encoder_inputs=(0, 1, 2, 3), other_inputs=(14000, 14001, 14002, 14003), led_outputs=(11000, 11001, 11002),
     amplifier_fault_inputs=(), stall_warning_inputs=(), stall_error_inputs=(), arm_encoder=None,
-    radians_per_count=(1.0 / conventions.PITCH_COUNTS_PER_RADIAN, 1.0 / conventions.YAW_COUNTS_PER_RADIAN),
+    radians_per_count=(conventions.TACHOMETER_TO_RAD_PER_S, conventions.TACHOMETER_TO_RAD_PER_S,
+                       1.0 / conventions.PITCH_COUNTS_PER_RADIAN, 1.0 / conventions.YAW_COUNTS_PER_RADIAN),
     amplifier_range=conventions.VOLTAGE_LIMIT)
 """The Aero 2's channels as the wrapper reads them (see the module docstring)."""
 
@@ -185,7 +187,7 @@ class Physics(BoardClockAndLed, control.Physics):
         self._samples = 0
         self._episode_start = 0
         self._twin = None
-        self.currents, self.encoders, self.others = np.zeros(2), np.zeros(2, dtype=np.int32), np.zeros(4)
+        self.currents, self.encoders, self.others = np.zeros(2), np.zeros(4, dtype=np.int32), np.zeros(4)
 
     # -- the Aero's interface -------------------------------------------------------------
 
@@ -237,10 +239,10 @@ class Physics(BoardClockAndLed, control.Physics):
         return self.qube.max_voltage
 
     def raw_readings(self) -> dict[str, float]:
-        """The last sample in board units: motor currents (A), pitch and yaw encoder counts, tachometers
-        (counts/s)."""
+        """The last sample in board units: motor currents (A), encoder counts, tachometers (counts/s)."""
         return {"current_front": float(self.currents[0]), "current_back": float(self.currents[1]),
-                "encoder_pitch": int(self.encoders[0]), "encoder_yaw": int(self.encoders[1]),
+                "encoder_front": int(self.encoders[0]), "encoder_back": int(self.encoders[1]),
+                "encoder_pitch": int(self.encoders[2]), "encoder_yaw": int(self.encoders[3]),
                 "tachometer_front": float(self.others[0]), "tachometer_back": float(self.others[1]),
                 "tachometer_pitch": float(self.others[2]), "tachometer_yaw": float(self.others[3]),
                 "missed_samples": self.qube.missed_samples}
@@ -388,8 +390,8 @@ class Physics(BoardClockAndLed, control.Physics):
         self.currents, self.encoders, self.others = self.qube.action([float(volts[0]), float(volts[1])],
                                                                       led=self._led)
         self._applied = np.clip(volts, -self.qube.max_voltage, self.qube.max_voltage)
-        pitch = self.encoders[0] / conventions.PITCH_COUNTS_PER_RADIAN
-        yaw = self.encoders[1] / conventions.YAW_COUNTS_PER_RADIAN
+        pitch = self.encoders[2] / conventions.PITCH_COUNTS_PER_RADIAN
+        yaw = self.encoders[3] / conventions.YAW_COUNTS_PER_RADIAN
         self._state = np.array([pitch, yaw, self.others[2] / conventions.PITCH_COUNTS_PER_RADIAN,
                                 self.others[3] / conventions.YAW_COUNTS_PER_RADIAN,
                                 self.others[0] * conventions.TACHOMETER_TO_RAD_PER_S,

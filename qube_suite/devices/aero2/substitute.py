@@ -77,13 +77,15 @@ a free swing decays over several cycles as in Quanser's pitch-estimation lab. `y
 SPREADS: types.MappingProxyType[str, float] = types.MappingProxyType({
     "thrust_constant": 0.10, "propeller_drag": 0.15, "propeller_inertia": 0.10,
     "motor_resistance": 0.05, "motor_back_emf": 0.04,
-    "pitch_inertia": 0.05, "yaw_inertia": 0.05, "center_of_mass_offset": 0.15,
+    "yaw_inertia": 0.05, "center_of_mass_offset": 0.15,
     "pitch_damping": 0.30, "yaw_damping": 0.30,
     "pitch_friction": 0.30, "yaw_friction": 0.30, "rotor_friction": 0.30,
 })
 """Relative spread (log-normal sigma) of each hidden parameter around its nominal value: manufacturing
 tolerances for the motors (5 %), CAD against the built body (5 %), and the poorly known
-aerodynamic and friction terms (10 to 30 %)."""
+aerodynamic and friction terms (10 to 30 %). The pitch inertia is the CAD figure's: the Aero's motion
+fixes the pitch terms only in proportion to it, and Quanser's own pitch-estimation lab holds it at the
+CAD value, as the calibration does."""
 
 HIDDEN_SEED = 20260
 """The seed of the default substitute Aero: the same plant in every run, unknown to the controllers."""
