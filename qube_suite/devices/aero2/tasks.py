@@ -34,11 +34,11 @@ from qube_suite.tasks.registry import TaskSuite
 VOLTAGE_WEIGHT = 0.1
 """Weight of the mean squared voltage, as a fraction of the voltage limit, in the dense rewards."""
 
-PITCH_SCALE = math.radians(60.0)
-"""Pitch error (rad) at which a dense reward's pitch term has taken all of it: the beam's travel."""
+PITCH_SCALE = math.radians(30.0)
+"""Pitch error (rad) at which a dense reward's pitch term has taken all of it."""
 
-YAW_SCALE = math.pi
-"""Yaw error (rad) at which a dense reward's yaw term has taken all of it: half a turn."""
+YAW_SCALE = math.radians(90.0)
+"""Yaw error (rad) at which a dense reward's yaw term has taken all of it: a quarter turn."""
 
 PITCH_TOLERANCE = math.radians(3.0)
 """Goal set: pitch within 3 degrees of its target."""
@@ -279,7 +279,7 @@ class Pitch(Aero2Task):
     | target | 0 | target pitch | rad | within +-45 degrees |
 
     ## Reward
-    max(0, 1 - |theta - theta_target| / 60 deg - 0.1 mean((V / voltage_limit)^2)) per step.
+    max(0, 1 - |theta - theta_target| / 30 deg - 0.1 mean((V / voltage_limit)^2)) per step.
     Sparse: 1 within 3 degrees of the target, else 0.
 
     ## Start
@@ -370,7 +370,7 @@ class Track(Aero2Task):
     | target | 0, 1 | target pitch, target yaw | rad | +-45, +-80 degrees |
 
     ## Reward
-    max(0, 1 - |theta - theta_target| / 60 deg - |psi - psi_target| / 180 deg
+    max(0, 1 - |theta - theta_target| / 30 deg - |psi - psi_target| / 90 deg
     - 0.1 mean((V / voltage_limit)^2)) per step. Sparse: 1 with the pitch within 3 degrees and the
     yaw within 5 degrees of their targets, else 0.
 
@@ -478,7 +478,7 @@ class Hover(Track):
     (rad, rad/s), target [0, psi_target] (rad).
 
     ## Reward
-    max(0, 1 - |theta| / 60 deg - |psi - psi_target| / 180 deg - 0.1 mean((V / voltage_limit)^2))
+    max(0, 1 - |theta| / 30 deg - |psi - psi_target| / 90 deg - 0.1 mean((V / voltage_limit)^2))
     per step. Sparse: 1 with the pitch within 3 degrees of level and the yaw within 5 degrees of its
     target, else 0.
 
