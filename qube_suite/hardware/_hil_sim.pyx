@@ -34,7 +34,7 @@ lasting `stall_time` disables the amplifier until its enable line is toggled).
 A disabled amplifier leaves the motor open-circuit: no current, no torque.
 
 A device that is not a Qube brings its own plant (`board_plant.BoardPlant`, e.g. a
-two-rotor Aero): the board then offers that plant's channels under its card type and
+device with two rotors): the board then offers that plant's channels under its card type and
 keeps the clock, the task buffers, the watchdog, the encoder offsets and the
 amplifier fault; the plant is advanced in Python from event to event (a sample due,
 the watchdog's deadline), one call each, under the outputs as they stand between

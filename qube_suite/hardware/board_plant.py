@@ -27,7 +27,7 @@ class PlantChannels:
     """The channels a board with this plant offers; channel numbers as the device's card numbers them.
 
     Attributes:
-        card_type: the QUARC card type the board answers to, e.g. "quanser_aero2_usb".
+        card_type: the QUARC card type the board answers to (the device's own card).
         analog_outputs: one per motor (V).
         digital_outputs: amplifier enables, one per motor (or one for all).
         analog_inputs: e.g. motor currents (A).
