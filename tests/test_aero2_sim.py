@@ -262,6 +262,19 @@ def test_the_command_line_runs_and_scores_the_aero(capsys):
     assert "2048 steps" in capsys.readouterr().out
 
 
+def test_a_recording_has_a_column_of_each_voltage_per_motor(tmp_path):
+    from qube_suite import recording
+
+    env = _env("hover")
+    with recording.Recorder(tmp_path / "aero.jsonl", env):
+        env.reset()
+        env.step(np.array([3.0, -30.0]))
+    episode = recording.load_recording(tmp_path / "aero.jsonl").episodes[0]
+    assert episode["action_1"][1] == -30.0 and episode["voltage_1"][1] == -18.0
+    assert episode["voltage_0"][1] == 3.0 and "voltage" not in episode.data
+    assert episode["back_rotor_speed"][1] < 0.0
+
+
 def test_the_batch_safety_probe_reads_like_the_aero():
     probe = aero_tasks.ProbeAeros(aero_tasks.PROBE_STATES, np.zeros(2), 2)
     np.testing.assert_array_equal(probe.rotor_speeds(), aero_tasks.PROBE_STATES[:, 4:])
