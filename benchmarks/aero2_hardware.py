@@ -1,4 +1,9 @@
-"""The Aero 2's hardware side on the substitute board: its speed, and its calibration across plants.
+"""The Aero 2's hardware side on the substitute board: baselines, speed, calibration across plants.
+
+results: the LQR on the substitute board (`aero2_hardware`, the default hidden Aero), on the runs of
+`benchmarks/aero2_baselines.py` (the same tasks and configurations, seeds 0 .. episodes-1, 250 Hz,
+18 V), as a markdown table; with `--page docs/aero2.md` it replaces what is between the page's
+`<!-- substitute-results:begin -->` and `<!-- substitute-results:end -->` markers.
 
 speed: wall time of LQR episodes of `hover` on the substitute board (`aero2_hardware`) against the
 same on the MuJoCo simulation (`aero2`) in the same run, and the substitute's speed over real time.
@@ -6,6 +11,7 @@ calibration: records the excitation experiment on substitute Aeros drawn with se
 `--seed + 1`, ... (`qube_suite.devices.aero2.calibration`), calibrates from each and prints each
 estimate's error against the plant's truth and whether the truth lies in its 95 % interval.
 
+    python benchmarks/aero2_hardware.py results [--episodes 10] [--page docs/aero2.md]
     python benchmarks/aero2_hardware.py speed [--episodes 5]
     python benchmarks/aero2_hardware.py calibration [--plants 6] [--seed 1]
 """
@@ -14,11 +20,32 @@ from __future__ import annotations
 
 import argparse
 import pathlib
+import re
 import tempfile
 import time
 
 from qube_suite.devices.aero2 import calibration, substitute
 from qube_suite.evaluation import evaluate
+
+BEGIN, END = "<!-- substitute-results:begin -->", "<!-- substitute-results:end -->"
+LQR_RUNS = (("pitch", "pitch_only"), ("pitch", "2dof"), ("pitch_sparse", "pitch_only"), ("hover", "2dof"),
+            ("hover_sparse", "2dof"), ("track", "2dof"), ("track_sparse", "2dof"))
+"""(task, configuration) of the LQR's runs: those of `benchmarks/aero2_baselines.py`."""
+
+
+def results(episodes: int, page: pathlib.Path | None) -> None:
+    lines = ["| baseline | task | configuration | return | success |", "|---|---|---|---|---|"]
+    for task, configuration in LQR_RUNS:
+        result = evaluate("lqr", domain="aero2_hardware", task=task, episodes=episodes,
+                          domain_kwargs={"configuration": configuration})
+        score = f"{result.mean_return:.0f} ± {result.std_return:.0f} | {100 * result.success_rate:.0f} %"
+        lines.append(f"| LQR | {task} | {configuration} | {score} |")
+        print(lines[-1], flush=True)
+    table = "\n".join(lines)
+    if page is not None:
+        text = page.read_text()
+        text = re.sub(f"{re.escape(BEGIN)}.*{re.escape(END)}", f"{BEGIN}\n{table}\n{END}", text, flags=re.S)
+        page.write_text(text)
 
 
 def speed(episodes: int) -> None:
@@ -58,12 +85,17 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = parser.add_subparsers(dest="command", required=True)
+    resulting = commands.add_parser("results")
+    resulting.add_argument("--episodes", type=int, default=10)
+    resulting.add_argument("--page", type=pathlib.Path)
     commands.add_parser("speed").add_argument("--episodes", type=int, default=5)
     calibrating = commands.add_parser("calibration")
     calibrating.add_argument("--plants", type=int, default=6)
     calibrating.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
-    if args.command == "speed":
+    if args.command == "results":
+        results(args.episodes, args.page)
+    elif args.command == "speed":
         speed(args.episodes)
     else:
         calibrations(args.plants, args.seed)
