@@ -18,8 +18,8 @@ stays at the CAD figure (as Quanser's lab holds it), with the arm Dt, the mass M
     aero.parameters["thrust_constant"], aero.intervals["thrust_constant"]
 
 `record_experiment` drives the Aero's hardware domain (the substitute board or a real Aero) with a
-multisine on a steady lift, which keeps the rotor turning one way and swings the beam up to 20 to 45
-degrees (substitute Aeros of different seeds), and saves the board's raw readings with the voltages
+multisine on a steady lift, which keeps the rotor turning one way, for 6 s of every 10 s, and lets
+the beam swing freely at 0 V in between; and saves the board's raw readings with the voltages
 applied (`.npz`; the episode recorder writes one voltage per row).
 """
 
@@ -68,12 +68,18 @@ HELD = ("rotor_inertia", "hub_mass", "hub_radius", "pitch_inertia", "thrust_arm"
 ENCODERS = Encoders(shaft="encoder_front", pendulum="encoder_pitch", shaft_limit=None)
 """The front motor's shaft on encoder 0, the pitch on encoder 2 (raw columns of the experiment)."""
 
-LIFT_VOLTAGE = 4.0
-"""The front thruster's steady voltage (V): the beam hangs at about 15 degrees."""
+LIFT_VOLTAGE = 3.5
+"""The front thruster's steady voltage (V) while driven: the beam hangs at about 12 degrees."""
 
-EXCITATION = ((1.4, 0.11), (1.0, 0.37), (0.8, 0.9), (0.6, 2.3))
+EXCITATION = ((1.0, 0.11), (0.8, 0.37), (0.8, 0.9), (0.6, 2.3))
 """The multisine's components on top of the lift (V, Hz): the slow ones swing the beam, the fast ones
 vary the rotor's acceleration."""
+
+DRIVEN, PERIOD = 6.0, 10.0
+"""The thruster is driven for the first `DRIVEN` s of every `PERIOD` s and at 0 V for the rest: the
+beam then swings freely, its weight against its inertia (the swings of Quanser's pitch-estimation
+lab), which separates the centre of mass's offset from the thrust and the damping from the
+friction."""
 
 SECONDS = 40.0
 """Default length of the experiment (s)."""
@@ -108,6 +114,8 @@ def model() -> fit.Model:
 
 def excitation_voltage(time: float, phases: np.ndarray) -> float:
     """The front thruster's voltage at `time` (s), with the components' `phases` (rad)."""
+    if time % PERIOD >= DRIVEN:
+        return 0.0
     return LIFT_VOLTAGE + sum(amplitude * math.sin(2.0 * math.pi * frequency * time + phase)
                               for (amplitude, frequency), phase in zip(EXCITATION, phases, strict=True))
 
