@@ -239,3 +239,21 @@ def test_voltages_are_clipped_on_each_thruster():
 def test_a_real_board_takes_no_substitute_parameters():
     with pytest.raises(ValueError, match="substitute"):
         hardware.make_physics(board=substitute.CARD_TYPE, parameters={"thrust_constant": 1e-3})
+
+
+def test_the_gymnasium_hardware_ids_pass_the_checker_and_refuse_nan_at_zero_volts():
+    import gymnasium
+    from gymnasium.utils.env_checker import check_env
+
+    import qube_suite  # noqa: F401  (registers the ids)
+
+    env = gymnasium.make("QubeSuite/Aero2HoverHardware-v0")
+    check_env(env.unwrapped, skip_render_check=True)
+    env.reset(seed=0)
+    env.step(np.array([6.0, 6.0], dtype=np.float32))
+    board = env.unwrapped.physics.qube.board
+    with pytest.raises(ValueError):
+        env.step(np.array([6.0, np.nan], dtype=np.float32))
+    np.testing.assert_array_equal(board.applied_voltage, [0.0, 0.0])
+    env.close()
+    assert_both_off(board)
