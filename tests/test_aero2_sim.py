@@ -281,7 +281,7 @@ def test_the_batch_safety_probe_reads_like_the_aero():
     assert probe.voltage().shape == (2, 2)
 
 
-AERO_NAMES = re.compile(r"aero2|aero 2|\bAero2[A-Z]|\"Aero2\"|thrust_arm|rotor_speeds", re.IGNORECASE)
+AERO_NAMES = re.compile(r"aero ?2|\bAero\b|thrust_arm|rotor_speeds", re.IGNORECASE)
 
 
 def test_nothing_outside_the_aeros_folder_names_it():

@@ -17,7 +17,7 @@ one JSON record, nothing pickled:
   target), `history` (the number k of past observations and voltages the
   network also sees, 0 for none: `qube_suite.policies.history`),
   `task`, `algo`, and the record of its training; `action_size`, only for a device with
-  several motors (the Aero's 2): the number of voltages the last layer gives (1 without it).
+  several motors: the number of voltages the last layer gives (1 without it).
 
 Format 1 is format 2 without `history` (no history); this module reads both and
 refuses other formats, and files whose layers do not fit their features and

@@ -50,7 +50,7 @@ def voltage_from_action(action: Any, limit: float, worlds: int | None = None, al
     (worlds,). A wrong shape raises ValueError("Action dimension mismatch ...",
     Gymnasium's wording), as do NaN, inf and non-numbers. See docs/conventions.md.
 
-    A device with several motors passes its action's `shape` (the Aero's (2,)): the voltages are then a
+    A device with several motors passes its action's `shape` (two motors: (2,)): the voltages are then a
     new float64 array of that shape, or of (worlds, *shape) for a batch, each clipped to +-`limit`.
     """
     if shape != ACTION_SHAPE:

@@ -35,8 +35,7 @@ import scipy.linalg
 
 from qube_suite.arguments import check_keywords, keywords_of
 from qube_suite.devices.aero2 import parameters as aero_parameters
-from qube_suite.devices.aero2.conventions import RECOMMENDED_VOLTAGE
-from qube_suite.devices.aero2.simulation import check_configuration
+from qube_suite.devices.aero2.conventions import RECOMMENDED_VOLTAGE, check_configuration
 from qube_suite.policies.mlp import flat_values
 
 
@@ -97,9 +96,10 @@ class AeroLQR:
         parameters: the Aero's parameters to design for, by long name (nominal by default).
         configuration: "2dof" or "pitch_only", the domain's.
         yaw: whether the task holds the yaw too (hover, track) or the pitch alone (pitch).
-        angle_tolerance (rad, default 0.05), rate_tolerance (rad/s, default 0.5), speed_tolerance (rad/s,
-        default 400), integral_tolerance (rad s, default 0.2): Bryson's rule, each state weight the
-        inverse square of its tolerance, each voltage's 1 / voltage_limit^2.
+        angle_tolerance (pitch, rad, default 0.05), yaw_tolerance (rad, default 0.1), rate_tolerance
+        (rad/s, default 0.5), speed_tolerance (rad/s, default 400), integral_tolerance (rad s, default
+        0.2): Bryson's rule, each state weight the inverse square of its tolerance, each voltage's
+        1 / voltage_limit^2.
     """
 
     name: ClassVar[str] = "lqr"
@@ -108,8 +108,9 @@ class AeroLQR:
 
     def __init__(self, control_frequency: float = 250.0, voltage_limit: float = RECOMMENDED_VOLTAGE,
                  parameters: Mapping[str, float] | None = None, configuration: str = "2dof",
-                 yaw: bool = True, angle_tolerance: float = 0.05, rate_tolerance: float = 0.5,
-                 speed_tolerance: float = 400.0, integral_tolerance: float = 0.2):
+                 yaw: bool = True, angle_tolerance: float = 0.05, yaw_tolerance: float = 0.1,
+                 rate_tolerance: float = 0.5, speed_tolerance: float = 400.0,
+                 integral_tolerance: float = 0.2):
         self.period = 1.0 / control_frequency
         self.voltage_limit = float(voltage_limit)
         self.configuration = configuration
@@ -128,8 +129,8 @@ class AeroLQR:
         block[:n, :n], block[:n, n:] = augmented_a, augmented_b
         discrete = scipy.linalg.expm(block * self.period)
         a_d, b_d = discrete[:n, :n], discrete[:n, n:]
-        tolerances = ([angle_tolerance] * axes + [rate_tolerance] * axes + [speed_tolerance] * 2
-                      + [integral_tolerance] * axes)
+        angles = [angle_tolerance, yaw_tolerance][:axes]
+        tolerances = angles + [rate_tolerance] * axes + [speed_tolerance] * 2 + [integral_tolerance] * axes
         q = np.diag(np.array(tolerances, dtype=np.float64) ** -2)
         r = np.eye(2) * self.voltage_limit**-2
         s = scipy.linalg.solve_discrete_are(a_d, b_d, q, r)

@@ -42,6 +42,14 @@ ACTION_NAMES = ("front_voltage", "back_voltage")
 CONFIGURATIONS = ("2dof", "pitch_only")
 """The Aero 2's configurations: the 2-DOF helicopter, and the 1-DOF pitch with yaw locked."""
 
+
+def check_configuration(configuration: str) -> None:
+    """Raise ValueError unless `configuration` is one of `CONFIGURATIONS`."""
+    if configuration not in CONFIGURATIONS:
+        raise ValueError(f"unknown configuration {configuration!r}; valid configurations: "
+                         f"{', '.join(CONFIGURATIONS)}")
+
+
 VOLTAGE_LIMIT = 24.0
 """The Aero 2 amplifier's maximum output voltage (V), Quanser Aero 2 user manual, table 2."""
 

@@ -31,10 +31,10 @@ from dm_control import mujoco as dm_mujoco
 from qube_suite.arguments import keywords_of
 from qube_suite.devices.aero2 import parameters as aero_parameters
 from qube_suite.devices.aero2.conventions import (
-    CONFIGURATIONS,
     MAX_BODY_SPEED,
     MAX_ROTOR_SPEED,
     STATE_NAMES,
+    check_configuration,
 )
 from qube_suite.devices.qube import parameters as shared_parameters
 from qube_suite.devices.qube.simulation import check_control_frequency, physics_timestep
@@ -55,13 +55,6 @@ BEAM_ROLL_INERTIA = 0.002
 
 ROTORS = ("front", "back")
 """The thrusters, in the order of the action and the rotor speeds."""
-
-
-def check_configuration(configuration: str) -> None:
-    """Raise ValueError unless `configuration` is one of `conventions.CONFIGURATIONS`."""
-    if configuration not in CONFIGURATIONS:
-        raise ValueError(f"unknown configuration {configuration!r}; valid configurations: "
-                         f"{', '.join(CONFIGURATIONS)}")
 
 
 def mass_distribution(values: Mapping[str, float], configuration: str) -> dict[str, float]:
