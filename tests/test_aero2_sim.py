@@ -275,6 +275,21 @@ def test_a_recording_has_a_column_of_each_voltage_per_motor(tmp_path):
     assert episode["back_rotor_speed"][1] < 0.0
 
 
+def protocol_members(protocol: type) -> set[str]:
+    """The methods and attributes a `typing.Protocol` declares."""
+    return {name for name in vars(protocol) if not name.startswith("_")} | set(protocol.__annotations__)
+
+
+@pytest.mark.parametrize("configuration", ["2dof", "pitch_only"])
+def test_the_simulation_has_every_member_of_the_aeros_domain_interface(configuration):
+    physics = _physics(configuration)
+    members = protocol_members(aero_tasks.Aero2Physics)
+    assert {"rotor_speeds", "configuration", "reset_context", "stop_motor"} <= members
+    assert [name for name in sorted(members) if not hasattr(physics, name)] == []
+    assert physics.configuration == configuration and physics.state_names == simulation.STATE_NAMES
+    assert physics.rotor_speeds().shape == (2,) and physics.voltage().shape == (2,)
+
+
 def test_the_batch_safety_probe_reads_like_the_aero():
     probe = aero_tasks.ProbeAeros(aero_tasks.PROBE_STATES, np.zeros(2), 2)
     np.testing.assert_array_equal(probe.rotor_speeds(), aero_tasks.PROBE_STATES[:, 4:])
