@@ -1,8 +1,9 @@
 """The Aero 2's hardware side on the substitute board: baselines, speed, calibration across plants.
 
-results: the LQR on the substitute board (`aero2_hardware`, the default hidden Aero), on the runs of
-`benchmarks/aero2_baselines.py` (the same tasks and configurations, seeds 0 .. episodes-1, 250 Hz,
-18 V), as a markdown table; with `--page docs/aero2.md` it replaces what is between the page's
+results: the LQR, and each policy given with `--policy TASK=FILE.npz` (at the control frequency it
+was trained at), on the substitute board (`aero2_hardware`, the default hidden Aero), on the runs of
+`benchmarks/aero2_baselines.py` (its tasks and configurations, seeds 0 .. episodes-1, 18 V), as a
+markdown table; with `--page docs/aero2.md` it replaces what is between the page's
 `<!-- substitute-results:begin -->` and `<!-- substitute-results:end -->` markers.
 
 speed: wall time of LQR episodes of `hover` on the substitute board (`aero2_hardware`) against the
@@ -11,7 +12,7 @@ calibration: records the excitation experiment on substitute Aeros drawn with se
 `--seed + 1`, ... (`qube_suite.devices.aero2.calibration`), calibrates from each and prints each
 estimate's error against the plant's truth and whether the truth lies in its 95 % interval.
 
-    python benchmarks/aero2_hardware.py results [--episodes 10] [--page docs/aero2.md]
+    python benchmarks/aero2_hardware.py results [--episodes 10] [--policy hover=F.npz] [--page docs/aero2.md]
     python benchmarks/aero2_hardware.py speed [--episodes 5]
     python benchmarks/aero2_hardware.py calibration [--plants 6] [--seed 1]
 """
@@ -24,22 +25,29 @@ import re
 import tempfile
 import time
 
+from aero2_baselines import LQR_RUNS, cell, trained_frequency  # this folder's simulation baselines
+
 from qube_suite.devices.aero2 import calibration, substitute
 from qube_suite.evaluation import evaluate
+from qube_suite.policies import load_policy
 
 BEGIN, END = "<!-- substitute-results:begin -->", "<!-- substitute-results:end -->"
-LQR_RUNS = (("pitch", "pitch_only"), ("pitch", "2dof"), ("pitch_sparse", "pitch_only"), ("hover", "2dof"),
-            ("hover_sparse", "2dof"), ("track", "2dof"), ("track_sparse", "2dof"))
-"""(task, configuration) of the LQR's runs: those of `benchmarks/aero2_baselines.py`."""
 
 
-def results(episodes: int, page: pathlib.Path | None) -> None:
-    lines = ["| baseline | task | configuration | return | success |", "|---|---|---|---|---|"]
-    for task, configuration in LQR_RUNS:
-        result = evaluate("lqr", domain="aero2_hardware", task=task, episodes=episodes,
-                          domain_kwargs={"configuration": configuration})
-        score = f"{result.mean_return:.0f} ± {result.std_return:.0f} | {100 * result.success_rate:.0f} %"
-        lines.append(f"| LQR | {task} | {configuration} | {score} |")
+def results(episodes: int, policies: list[str], page: pathlib.Path | None) -> None:
+    runs = [("LQR", task, configuration, "lqr", 250.0) for task, configuration in LQR_RUNS]
+    for spec in policies:
+        task, path = spec.split("=", 1)
+        configuration = "pitch_only" if task.startswith("pitch") else "2dof"
+        runs.append((f"PPO (`{pathlib.Path(path).name}`)", task, configuration, path,
+                     trained_frequency(load_policy(path))))
+    lines = ["| baseline | task | configuration | control | return | success |", "|---|---|---|---|---|---|"]
+    for label, task, configuration, spec, frequency in runs:
+        policy = spec if spec == "lqr" else load_policy(spec)
+        result = evaluate(policy, domain="aero2_hardware", task=task, episodes=episodes,
+                          domain_kwargs={"configuration": configuration},
+                          environment_kwargs={"control_frequency": frequency})
+        lines.append(f"| {label} | {task} | {configuration} | {frequency:g} Hz | {cell(result)} |")
         print(lines[-1], flush=True)
     table = "\n".join(lines)
     if page is not None:
@@ -87,6 +95,7 @@ def main() -> int:
     commands = parser.add_subparsers(dest="command", required=True)
     resulting = commands.add_parser("results")
     resulting.add_argument("--episodes", type=int, default=10)
+    resulting.add_argument("--policy", action="append", default=[], metavar="TASK=FILE.npz")
     resulting.add_argument("--page", type=pathlib.Path)
     commands.add_parser("speed").add_argument("--episodes", type=int, default=5)
     calibrating = commands.add_parser("calibration")
@@ -94,7 +103,7 @@ def main() -> int:
     calibrating.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     if args.command == "results":
-        results(args.episodes, args.page)
+        results(args.episodes, args.policy, args.page)
     elif args.command == "speed":
         speed(args.episodes)
     else:
