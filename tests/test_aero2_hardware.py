@@ -119,6 +119,28 @@ def test_the_gyroscopic_torque_couples_a_spinning_rotor_to_the_other_axis():
     assert pitch_after(300.0) != pytest.approx(pitch_after(0.0), abs=1e-4)
 
 
+@pytest.mark.parametrize("configuration", ["2dof", "pitch_only"])
+def test_the_plant_agrees_with_the_controllers_linear_model_for_small_voltages(configuration):
+    """Two derivations, one per side (the substitute's nonlinear equations here, the LQR's linear model
+    by the simulation side): for small voltages from rest they must move the Aero alike."""
+    import scipy.linalg
+
+    from qube_suite.devices.aero2 import controllers
+
+    plant = substitute.make_plant({"pitch_friction": 0.0, "yaw_friction": 0.0, "rotor_friction": 0.0,
+                                   "motor_inductance": 0.0}, configuration=configuration)
+    volts = np.array([1.0, 0.6])
+    state = run(plant, volts, 1.0)
+    a, b = controllers.linear_model(None, configuration)
+    n = len(a)
+    block = np.zeros((n + 2, n + 2))
+    block[:n, :n], block[:n, n:] = a, b
+    linear = scipy.linalg.expm(block)[:n, n:] @ volts              # from rest, 1 s of constant voltages
+    if configuration == "pitch_only":
+        state = state[[0, 2, 4, 5]]
+    np.testing.assert_allclose(state, linear, rtol=0.01, atol=1e-5)
+
+
 def test_the_board_reads_counts_floored_at_the_aeros_resolutions():
     board = _hil_sim.HIL(plant=substitute.make_plant())
     board.open(substitute.CARD_TYPE, "0")
