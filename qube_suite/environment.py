@@ -173,7 +173,7 @@ class Environment(control.Environment):
         After an episode's last step this starts the next episode, as dm_env does, but only for a
         valid action: a bad one raises ValueError first and nothing moves."""
         if self._reset_next_step:
-            voltage_from_action(action, self._task.voltage_limit)
+            voltage_from_action(action, self._task.voltage_limit, shape=self._task.action_shape)
             return self.reset()
         reward, discount = self.advance(action)
         try:

@@ -59,7 +59,11 @@ COLUMNS = ("step", "time", "action", "voltage", "applied_voltage", "reward", "di
 (V, before clipping); the voltage commanded (V, clipped to the task's limit) and applied to the
 motor (V, after actuator effects; on hardware, as written to the board); reward and discount of
 the step (null in the reset's row); last (1 in the episode's final row); LED colour. The measured
-state follows (`state_columns`)."""
+state follows (`state_columns`). A device with several motors has one column of each voltage per
+motor instead (`voltage_columns`)."""
+
+VOLTAGE_COLUMNS = ("action", "voltage", "applied_voltage")
+"""The columns that hold a voltage: one each for one motor, else suffixed `_0`, `_1`, ... per motor."""
 
 PENDULUM_STATE = ("theta", "alpha", "dtheta", "dalpha")
 """The pendulum's measured state [theta, alpha, dtheta, dalpha] (rad, rad/s): the state columns of a
@@ -69,6 +73,14 @@ domain that does not name its own (`capabilities.NamedState`)."""
 def state_columns(physics: Any) -> tuple[str, ...]:
     """The names of the measured state's columns for `physics`."""
     return physics.state_names if isinstance(physics, NamedState) else PENDULUM_STATE
+
+
+def voltage_columns(motors: int) -> tuple[str, ...]:
+    """`COLUMNS` for a device with `motors` motors: the voltage columns once per motor when several."""
+    if motors == 1:
+        return COLUMNS
+    return tuple(column for name in COLUMNS for column in (
+        [f"{name}_{motor}" for motor in range(motors)] if name in VOLTAGE_COLUMNS else [name]))
 
 
 def _finite(value: float) -> float | None:
@@ -109,6 +121,7 @@ class Recorder:
         self._environment = None
         self._steps = 0
         self._raw = False
+        self._motors = 1
         self._write({"format": FORMAT, "version": VERSION, **_plain(dict(metadata or {}))})
         if environment is not None:
             self.attach(environment)
@@ -144,7 +157,8 @@ class Recorder:
         physics, task = environment.physics, environment.task
         observation = [(key, spec.shape[0]) for key, spec in task.observation_spec(physics).items()]
         self._raw = isinstance(physics, HasBoard)
-        columns = [*COLUMNS, *state_columns(physics),
+        self._motors = int(np.prod(getattr(task, "action_shape", (1,))))
+        columns = [*voltage_columns(self._motors), *state_columns(physics),
                    *(f"obs_{key}_{i}" for key, size in observation for i in range(size))]
         if self._raw:
             columns += [f"raw_{name}" for name in physics.raw_readings()]
@@ -163,7 +177,7 @@ class Recorder:
         """Write the step's row, and the episode's end once it is over."""
         self._steps += 1
         last = discount is not None
-        action = float(np.ravel(action)[0])
+        action = float(np.ravel(action)[0]) if self._motors == 1 else np.ravel(action).astype(float)
         self._row(environment, action, reward, 1.0 if discount is None else discount, last)
         if last:
             error = environment.physics_error
@@ -172,12 +186,16 @@ class Recorder:
 
     # -- writing -----------------------------------------------------------------------------
 
-    def _row(self, environment: Any, action: float | None, reward: float | None, discount: float | None,
+    def _row(self, environment: Any, action: Any, reward: float | None, discount: float | None,
              last: bool) -> None:
         physics = environment.physics
-        values = [self._steps, physics.time(), action, physics.voltage(), physics.applied_voltage(), reward,
-                  discount, int(last), *physics.led(), *physics.qube_state().tolist(),
-                  *environment.task.observation_values(physics)]
+        if self._motors == 1:
+            volts = [action, physics.voltage(), physics.applied_voltage()]
+        else:
+            volts = [*([None] * self._motors if action is None else action), *physics.voltage(),
+                     *physics.applied_voltage()]
+        values = [self._steps, physics.time(), *volts, reward, discount, int(last), *physics.led(),
+                  *physics.qube_state().tolist(), *environment.task.observation_values(physics)]
         if self._raw:
             values += physics.raw_readings().values()
         self._write([None if value is None else _finite(value) for value in values])

@@ -11,13 +11,16 @@ from qube_suite.wrappers import GYMNASIUM_IDS, HARDWARE_GYMNASIUM_IDS, gymnasium
 
 
 def test_the_qube_pendulum_is_found_by_discovery_with_its_two_domains():
-    assert list(devices.devices()) == ["qube", "qube_disk"]
-    assert list(devices.domains()) == ["qube", "qube_hardware", "qube_disk", "qube_disk_hardware"]
+    assert list(devices.devices()) == ["aero2", "qube", "qube_disk"]
+    assert list(devices.domains()) == ["aero2", "aero2_hardware", "qube", "qube_hardware", "qube_disk",
+                                       "qube_disk_hardware"]
     hardware = devices.domain("qube_hardware")
     assert hardware.hardware and hardware.device.name == "qube"
     assert hardware.module().__name__ == "qube_suite.devices.qube.hardware"
-    assert set(suite.TASKS_BY_DOMAIN) == {"qube", "qube_hardware", "qube_disk", "qube_disk_hardware"}
-    with pytest.raises(ValueError, match=r"unknown domain 'qube_aero'; valid domains: qube, qube_hardware, "):
+    assert set(suite.TASKS_BY_DOMAIN) == {"aero2", "aero2_hardware", "qube", "qube_hardware", "qube_disk",
+                                          "qube_disk_hardware"}
+    with pytest.raises(ValueError, match=r"unknown domain 'qube_aero'; valid domains: aero2, aero2_hardware, "
+                                         r"qube, qube_hardware, "):
         suite.load("qube_aero", "swingup")
 
 
@@ -64,4 +67,4 @@ def test_a_device_whose_folder_has_another_name_is_refused(monkeypatch):
     finally:
         monkeypatch.undo()
         devices.devices.cache_clear()
-    assert list(devices.devices()) == ["qube", "qube_disk"]
+    assert list(devices.devices()) == ["aero2", "qube", "qube_disk"]

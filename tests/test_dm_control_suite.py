@@ -86,9 +86,13 @@ def validate_observation(observation, observation_spec):
 def test_task_conforms_to_spec(domain, task):
     env = suite.load(domain, task)
     observation_spec, action_spec = env.observation_spec(), env.action_spec()
-    # suite_test.py checks [-1, 1] here; the Qube's action is the voltage (docs/conventions.md).
-    np.testing.assert_array_equal(action_spec.minimum, [-DEFAULT_VOLTAGE_LIMIT])
-    np.testing.assert_array_equal(action_spec.maximum, [DEFAULT_VOLTAGE_LIMIT])
+    # suite_test.py checks [-1, 1] here; the action is the voltage of each motor (docs/conventions.md),
+    # within the task's default limit: 3 V on the Qube's modules.
+    limit = np.full(env.task.action_shape, env.task.voltage_limit)
+    np.testing.assert_array_equal(action_spec.minimum, -limit)
+    np.testing.assert_array_equal(action_spec.maximum, limit)
+    if domain.startswith("qube"):
+        assert env.task.voltage_limit == DEFAULT_VOLTAGE_LIMIT
     for time_step in step_environment(env, uniform_random_policy(action_spec)):
         validate_observation(time_step.observation, observation_spec)
         if time_step.first():

@@ -128,7 +128,7 @@ def test_real_board_path_with_the_substitute_injected(monkeypatch):
 
 
 def test_gymnasium_hardware_ids():
-    assert len(HARDWARE_GYMNASIUM_IDS) == 11 + 4  # the pendulum's and the disk's
+    assert len(HARDWARE_GYMNASIUM_IDS) == 11 + 4 + 6  # the pendulum's, the disk's and the Aero 2's
     spec = gymnasium.spec("QubeSuite/BalanceHardware-v0")
     assert spec.nondeterministic
     env = gymnasium.make("QubeSuite/BalanceHardware-v0", time_limit=0.2)

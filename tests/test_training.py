@@ -33,6 +33,25 @@ def test_bad_arguments_fail_before_training():
         training.train("balance", randomization={"parameters": {"pendulum_weight": 1.0}})
     with pytest.raises(ValueError, match="init_log_std is the exploration noise of a warm start: give init"):
         training.train("balance", hyperparameters={"init_log_std": -4.0})
+    with pytest.raises(ValueError, match="environment_kwargs got an unexpected keyword argument 'frequency'"):
+        training.train("balance", environment_kwargs={"frequency": 50.0})
+
+
+@needs_rl
+def test_environment_settings_reach_the_training_worlds():
+    from qube_suite.training.environments import raw_vec_env
+
+    venv = raw_vec_env("position", 1, 0, domain="qube_disk", environment_kwargs={"control_frequency": 50.0,
+                                                                                  "time_limit": 1.0})
+    assert venv.envs[0].unwrapped.environment.control_frequency == 50.0
+    venv.reset()
+    steps = 0
+    while not venv.step([[0.0]])[2][0]:
+        steps += 1
+    assert steps + 1 == 50  # one second at 50 Hz
+    venv.close()
+    with pytest.raises(ValueError, match="native vector environment runs at its defaults"):
+        raw_vec_env("balance", 2, 0, environment_kwargs={"control_frequency": 50.0})
 
 
 def observations(size, count=64):

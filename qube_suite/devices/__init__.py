@@ -43,6 +43,9 @@ class Device:
             `qube_suite.policies.features.FEATURE_MAPS`).
         batch: module of its batch simulation behind `gymnasium.make_vec`'s native vector env, or
             None: `make_vec` then steps single environments (Gymnasium's own `SyncVectorEnv`).
+        substitute: module of the substitute board's plant for a device on a card of its own
+            (`CARD_TYPE` and `make_plant()`, see `qube_suite.hardware.board_plant`), or None: a device
+            on a Qube's card runs on the board's own Furuta plant.
     """
 
     name: str
@@ -54,6 +57,7 @@ class Device:
     gymnasium_prefix: str = ""
     feature_map: str = "trig"
     batch: str | None = None
+    substitute: str | None = None
 
     @property
     def domain_names(self) -> tuple[str, str]:

@@ -33,6 +33,13 @@ correlation time `vibration_time`, from the board's random stream seeded by
 lasting `stall_time` disables the amplifier until its enable line is toggled).
 A disabled amplifier leaves the motor open-circuit: no current, no torque.
 
+A device that is not a Qube brings its own plant (`board_plant.BoardPlant`, e.g. a
+device with two rotors): the board then offers that plant's channels under its card type and
+keeps the clock, the task buffers, the watchdog, the encoder offsets and the
+amplifier fault; the plant is advanced in Python from event to event (a sample due,
+the watchdog's deadline), one call each, under the outputs as they stand between
+them. The Furuta plant below is the default and never leaves C.
+
 Integration, in C with the GIL released: classical RK4 at a fixed substep of at
 most 0.1 ms (at least 10 kHz; 40 substeps per sample at 250 Hz). RK4 because the
 smooth dynamics are non-stiff except for the electrical mode (time constant
@@ -92,11 +99,12 @@ import time
 
 import numpy as np
 
-from libc.math cimport INFINITY, cos, exp, fabs, floor, isfinite, log, sin, sqrt
+from libc.math cimport INFINITY, ceil, cos, exp, fabs, floor, isfinite, log, sin, sqrt
 from libc.stdlib cimport free, llabs, malloc
 
 from qube_suite.angles import wrap_angle
 from qube_suite.hardware import conventions
+from qube_suite.hardware.board_plant import LED_OUTPUTS, BoardPlant, substitute_plant
 from qube_suite.hardware.plant import plant_parameters
 from qube_suite.devices.qube.parameters import PENDULUM_ROD_RADIUS, arm_inertia, pendulum_inertia
 
@@ -115,7 +123,17 @@ PENDULUM_TACHOMETER_CARDS = ("qube_servo3_usb",)
 DIVERGENCE_SPEED = 1.0e4
 """A plant turning faster than this (rad/s), or not finite, has diverged."""
 cdef double _DIVERGENCE_SPEED = DIVERGENCE_SPEED
-OTHER_LED = (11000, 11001, 11002)
+OTHER_LED = LED_OUTPUTS
+MAX_CHANNELS = 4
+"""Most analog outputs, digital outputs, analog inputs and encoders a board offers."""
+MAX_OTHER_INPUTS = 10
+"""Most other inputs a board offers."""
+QUBE_CHANNELS = {"analog_outputs": (0,), "digital_outputs": (DIGITAL_ENABLE,), "analog_inputs": (ANALOG_CURRENT,),
+                 "encoder_inputs": (0, 1), "digital_inputs": (0, 1, 2), "other_inputs": OTHER_INPUTS}
+"""A Qube's channels, those of the Furuta plant."""
+CHANNEL_KINDS = {"analog_outputs": "analog output", "digital_outputs": "digital output",
+                 "analog_inputs": "analog input", "encoder_inputs": "encoder", "digital_inputs": "digital input",
+                 "other_inputs": "other input"}
 
 # Error codes of the substitute (its own numbers, not Quanser's).
 BOARD_NOT_OPEN = -1
@@ -220,22 +238,21 @@ cdef struct Plant:
     bint stall_detected, stall_error, fault, arm_blocked, diverged
 
 cdef struct Outputs:
-    double analog       # analog output 0 as written (V, board sign)
-    bint enable         # digital output 0
+    double analog[4]    # analog outputs as written, by place (V, board sign); the Furuta plant's is 0
+    bint enable[4]      # digital outputs (amplifier enables), by place
     double led[3]
 
 cdef struct Watchdog:
     bint running, expired
     double timeout, deadline
-    double analog_state
-    int digital_state
+    double analog_state[4]
+    int digital_state[4]
 
 cdef struct Sample:
-    double current      # A, board sign
-    int encoder[2]
+    double analog[4]    # analog inputs by place (the Furuta plant's: motor current, A, board sign)
+    int encoder[4]      # by place
     signed char digital[3]
-    double tachometer   # counts/s
-    double pendulum_tachometer  # counts/s
+    double other[10]    # other inputs by place (the Furuta plant's: tachometers, counts/s)
 
 cdef struct Sampler:
     bint running
@@ -437,12 +454,12 @@ cdef void _substep(const Params* p, Plant* s, double applied, bint on, double h)
 # -- the board ------------------------------------------------------------------------
 
 cdef class Task:
-    """A reader task's handle; channels are fixed when it is created."""
+    """A reader task's handle; channels are fixed when it is created (kept by their places on the board)."""
 
-    cdef int analog[1]
-    cdef int encoder[2]
+    cdef int analog[4]
+    cdef int encoder[4]
     cdef int digital[3]
-    cdef int other[2]
+    cdef int other[10]
     cdef int n_analog, n_encoder, n_digital, n_other
     cdef long samples_in_buffer
     cdef int overflow_mode
@@ -455,9 +472,11 @@ cdef class HIL:
 
     HIL(card_type=None, card_identifier="0", *, plant=None, realtime=False, seed=0): like
     Quanser's HIL, opens the board when `card_type` is given. `plant` overrides
-    plant parameters by long name (`qube_suite.hardware.plant`); `realtime=True`
-    paces tasks by the wall clock; `seed` (a non-negative integer) seeds the random
-    stream of the bench's sway.
+    plant parameters by long name (`qube_suite.hardware.plant`), or is a device's own
+    plant (a `board_plant.BoardPlant`): the board is then that device's card, with its
+    channels; a board opened as a card that a device's substitute declares, without a
+    plant, makes that device's plant. `realtime=True` paces tasks by the wall clock;
+    `seed` (a non-negative integer) seeds the random stream of the bench's sway.
     """
 
     INFINITE = -1
@@ -467,19 +486,27 @@ cdef class HIL:
     cdef Outputs out
     cdef Watchdog wd
     cdef Sampler smp
-    cdef int encoder_offset[2]
+    cdef int encoder_offset[4]
     cdef double h_idle, h
     cdef double wall_origin
     cdef bint realtime_, is_open
     cdef object lock, plant_overrides, plant_values, card_type, running_task
     cdef object read_failure, options_
     cdef long reads_before_failure
+    cdef object device_plant    # a device's own plant (BoardPlant), or None: the Furuta plant
+    cdef dict chans_            # channel kind -> the board's channels of that kind, in place order
+    cdef int n_analog_outputs, n_digital_outputs
 
     def __cinit__(self):
         self.smp.ring = NULL
 
     def __init__(self, card_type=None, card_identifier="0", *, plant=None, realtime=False, seed=0):
-        plant_parameters("qube_servo2_usb", plant)     # unknown names fail here, before opening
+        if isinstance(plant, BoardPlant):
+            self._use_device_plant(plant)
+            plant = None
+        else:
+            plant_parameters("qube_servo2_usb", plant)     # unknown names fail here, before opening
+            self._use_channels(QUBE_CHANNELS)
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**64:
             raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
         self.s.random_state = int(seed)
@@ -494,7 +521,11 @@ cdef class HIL:
         self.s.x[2] = self.s.x[3] = self.s.x[4] = 0.0
         self.s.t = 0.0
         self.out.led[0] = self.out.led[1] = self.out.led[2] = 0.0
-        self.encoder_offset[0] = self.encoder_offset[1] = 0
+        for j in range(MAX_CHANNELS):
+            self.encoder_offset[j] = 0
+            self.out.analog[j] = self.wd.analog_state[j] = 0.0
+            self.out.enable[j] = False
+            self.wd.digital_state[j] = 0
         if card_type is not None:
             self.open(card_type, card_identifier)
 
@@ -504,19 +535,29 @@ cdef class HIL:
     # -- opening and closing -------------------------------------------------------------
 
     def open(self, card_type, card_identifier):
-        """Open the board `card_type` ("qube_servo2_usb" or "qube_servo3_usb") number `card_identifier`."""
+        """Open the board `card_type` ("qube_servo2_usb", "qube_servo3_usb", or a device's own card, see
+        the class docstring) number `card_identifier`."""
         with self.lock:
             if self.is_open:
                 raise HILError(INVALID_ARGUMENT, "the board is already open")
-            if card_type not in BOARD_TYPES:
-                raise HILError(INVALID_CARD, f"unknown card type {card_type!r}; the substitute offers "
-                                              f"{', '.join(BOARD_TYPES)}")
+            if self.device_plant is None and card_type not in BOARD_TYPES:
+                found = substitute_plant(card_type)
+                if found is None:
+                    raise HILError(INVALID_CARD, f"unknown card type {card_type!r}; the substitute offers "
+                                                  f"{', '.join(BOARD_TYPES)} and the cards of the devices "
+                                                  "that bring their own plant")
+                self._use_device_plant(found)
+            if self.device_plant is not None and card_type != self.device_plant.channels.card_type:
+                raise HILError(INVALID_CARD, f"this substitute board carries a "
+                                              f"{self.device_plant.channels.card_type}'s plant, not a "
+                                              f"{card_type!r}'s")
             if str(card_identifier) in _UNPLUGGED:
                 raise HILError(BOARD_NOT_FOUND, f"no {card_type} board {card_identifier} is connected "
                                                 "(the substitute board was unplugged)")
-            values = plant_parameters(card_type, self.plant_overrides)
-            self._set_parameters(values)
-            self.plant_values = values
+            if self.device_plant is None:
+                values = plant_parameters(card_type, self.plant_overrides)
+                self._set_parameters(values)
+                self.plant_values = values
             self.card_type = card_type
             self.wall_origin = time.perf_counter() - self.s.t
             self.is_open = True
@@ -548,8 +589,9 @@ cdef class HIL:
             self.smp.running = False
             self.running_task = None
             self.wd.running = False
-            self.out.analog = 0.0
-            self.out.enable = False
+            for j in range(MAX_CHANNELS):
+                self.out.analog[j] = 0.0
+                self.out.enable[j] = False
             self.h = self.h_idle
             self.is_open = False
 
@@ -557,59 +599,58 @@ cdef class HIL:
 
     def read_encoder(self, channels, num_channels, int[::1] buffer):
         """Read encoder counts now into `buffer`."""
-        cdef list chans = _channels(channels, num_channels, _length_i(buffer), "encoder", (0, 1))
+        cdef list places = self._places(channels, num_channels, _length_i(buffer), "encoder_inputs")
         cdef Sample sample = self._read_now()
-        for j, c in enumerate(chans):
+        for j, c in enumerate(places):
             buffer[j] = sample.encoder[c]
 
     def read_analog(self, channels, num_channels, double[::1] buffer):
-        """Read the motor current (A) now into `buffer`."""
-        cdef list chans = _channels(channels, num_channels, _length_d(buffer), "analog input", (ANALOG_CURRENT,))
+        """Read the analog inputs (a Qube's: the motor current, A) now into `buffer`."""
+        cdef list places = self._places(channels, num_channels, _length_d(buffer), "analog_inputs")
         cdef Sample sample = self._read_now()
-        for j in range(len(chans)):
-            buffer[j] = sample.current
+        for j, c in enumerate(places):
+            buffer[j] = sample.analog[c]
 
     def read_digital(self, channels, num_channels, signed char[::1] buffer):
         """Read the fault and stall flags now into `buffer` (1 = asserted)."""
-        cdef list chans = _channels(channels, num_channels, _length_b(buffer), "digital input", (0, 1, 2))
+        cdef list chans = self._places(channels, num_channels, _length_b(buffer), "digital_inputs")
         cdef Sample sample = self._read_now()
         for j, c in enumerate(chans):
             buffer[j] = sample.digital[c]
 
     def read_other(self, channels, num_channels, double[::1] buffer):
-        """Read the tachometer (counts/s) now into `buffer`."""
-        cdef list chans = _channels(channels, num_channels, _length_d(buffer), "other input", OTHER_INPUTS)
-        self._check_other_inputs(chans)
+        """Read the other inputs (a Qube's: tachometers, counts/s) now into `buffer`."""
+        cdef list places = self._places(channels, num_channels, _length_d(buffer), "other_inputs")
         cdef Sample sample = self._read_now()
-        for j, c in enumerate(chans):
-            buffer[j] = sample.tachometer if c == OTHER_TACHOMETER else sample.pendulum_tachometer
+        for j, c in enumerate(places):
+            buffer[j] = sample.other[c]
 
     def write_analog(self, channels, num_channels, const double[::1] buffer):
-        """Set the motor voltage (V); the amplifier applies it within its limit while enabled."""
-        cdef list chans = _channels(channels, num_channels, _length_cd(buffer), "analog output", (0,))
-        cdef Py_ssize_t j, n = len(chans)
+        """Set the motor voltages (V); the amplifier applies them within its limit while enabled."""
+        cdef list places = self._places(channels, num_channels, _length_cd(buffer), "analog_outputs")
+        cdef Py_ssize_t j, n = len(places)
         for j in range(n):
             if not isfinite(buffer[j]):
                 raise HILError(INVALID_ARGUMENT, f"analog output value {buffer[j]} is not finite")
         with self.lock:
             self._require_writable()
             for j in range(n):
-                self.out.analog = buffer[j]
+                self.out.analog[<int>places[j]] = buffer[j]
 
     def write_digital(self, channels, num_channels, const signed char[::1] buffer):
-        """Set the amplifier enable line; a low level also clears a stall error."""
-        cdef list chans = _channels(channels, num_channels, _length_cb(buffer), "digital output", (DIGITAL_ENABLE,))
+        """Set the amplifier enable lines; a low level also clears a stall error."""
+        cdef list places = self._places(channels, num_channels, _length_cb(buffer), "digital_outputs")
         with self.lock:
             self._require_writable()
-            for j in range(len(chans)):
-                self.out.enable = buffer[j] != 0
-                if not self.out.enable:
+            for j, c in enumerate(places):
+                self.out.enable[<int>c] = buffer[j] != 0
+                if not self.out.enable[<int>c]:
                     self.s.stall_error = False
                     self.s.stall_timer = 0.0
 
     def write_other(self, channels, num_channels, const double[::1] buffer):
         """Set LED colour components (other outputs 11000-11002), each saturated to [0, 1]."""
-        cdef list chans = _channels(channels, num_channels, _length_cd(buffer), "other output", OTHER_LED)
+        cdef list chans = _channels(channels, num_channels, _length_cd(buffer), "other output", OTHER_LED, "this board")
         with self.lock:
             self._require_writable()
             for j, c in enumerate(chans):
@@ -617,13 +658,13 @@ cdef class HIL:
 
     def set_encoder_counts(self, channels, num_channels, const int[::1] buffer):
         """Make the encoders read `buffer` at their present positions."""
-        cdef list chans = _channels(channels, num_channels, _length_ci(buffer), "encoder", (0, 1))
-        cdef double positions[2]
+        cdef list places = self._places(channels, num_channels, _length_ci(buffer), "encoder_inputs")
+        cdef double positions[4]
         with self.lock:
             self._require_writable()
-            self._encoder_positions(positions)
-            for j, c in enumerate(chans):
-                self.encoder_offset[c] = buffer[j] - <int>floor(positions[c])
+            self._all_encoder_positions(positions)
+            for j, c in enumerate(places):
+                self.encoder_offset[<int>c] = buffer[j] - <int>floor(positions[<int>c])
 
     # -- tasks ---------------------------------------------------------------------------
 
@@ -632,14 +673,12 @@ cdef class HIL:
                            num_other_channels):
         """A task reading analog, encoder, digital and other inputs at each sample."""
         cdef Task task = Task()
-        analog = _channels(analog_channels, num_analog_channels, -1, "analog input", (ANALOG_CURRENT,))
-        encoder = _channels(encoder_channels, num_encoder_channels, -1, "encoder", (0, 1))
-        digital = _channels(digital_channels, num_digital_channels, -1, "digital input", (0, 1, 2))
-        other = _channels(other_channels, num_other_channels, -1, "other input", OTHER_INPUTS)
-        self._check_other_inputs(other)
-        for name, chans, capacity in (("analog", analog, 1), ("encoder", encoder, 2), ("digital", digital, 3),
-                                      ("other", other, 2)):
-            if len(chans) > capacity or len(set(chans)) != len(chans):
+        analog = self._places(analog_channels, num_analog_channels, -1, "analog_inputs")
+        encoder = self._places(encoder_channels, num_encoder_channels, -1, "encoder_inputs")
+        digital = self._places(digital_channels, num_digital_channels, -1, "digital_inputs")
+        other = self._places(other_channels, num_other_channels, -1, "other_inputs")
+        for name, chans in (("analog", analog), ("encoder", encoder), ("digital", digital), ("other", other)):
+            if len(set(chans)) != len(chans):
                 raise HILError(INVALID_CHANNEL, f"repeated {name} channels in {chans}")
         task.n_analog, task.n_encoder, task.n_digital, task.n_other = (
             len(analog), len(encoder), len(digital), len(other))
@@ -700,7 +739,7 @@ cdef class HIL:
             self.smp.remaining = num_samples
             self.smp.running = True
             self.running_task = task
-            self._take_sample()
+            self._take_present_sample()
 
     def task_read(self, Task task not None, num_samples, double[::1] analog_buffer, int[::1] encoder_buffer,
                   signed char[::1] digital_buffer, double[::1] other_buffer):
@@ -758,24 +797,24 @@ cdef class HIL:
 
     def watchdog_set_analog_expiration_state(self, channels, num_channels, const double[::1] voltages):
         """Voltages that the analog outputs take when the watchdog expires (default 0 V)."""
-        cdef list chans = _channels(channels, num_channels, _length_cd(voltages), "analog output", (0,))
+        cdef list places = self._places(channels, num_channels, _length_cd(voltages), "analog_outputs")
         with self.lock:
             self._require_open()
-            for j in range(len(chans)):
-                self.wd.analog_state = voltages[j]
+            for j, c in enumerate(places):
+                self.wd.analog_state[<int>c] = voltages[j]
 
     def watchdog_set_digital_expiration_state(self, channels, num_channels, states):
         """`DigitalState`s that the digital outputs take when the watchdog expires (default LOW)."""
-        cdef list chans = _channels(channels, num_channels, -1 if states is None else len(states), "digital output",
-                                      (DIGITAL_ENABLE,))
-        values = [int(states[j]) for j in range(len(chans))]
+        cdef list places = self._places(channels, num_channels, -1 if states is None else len(states),
+                                        "digital_outputs")
+        values = [int(states[j]) for j in range(len(places))]
         for value in values:
             if value not in (DigitalState.LOW, DigitalState.HIGH, DigitalState.TRISTATE, DigitalState.NO_CHANGE):
                 raise HILError(INVALID_ARGUMENT, f"{value} is not a DigitalState")
         with self.lock:
             self._require_open()
-            for value in values:
-                self.wd.digital_state = value
+            for c, value in zip(places, values):
+                self.wd.digital_state[<int>c] = value
 
     def watchdog_start(self, timeout):
         """Start the watchdog: it expires `timeout` (s) of board time after the last reload."""
@@ -824,14 +863,23 @@ cdef class HIL:
     # -- inspection (not part of Quanser's API) ------------------------------------------
 
     def true_state(self):
-        """[theta, alpha, dtheta, dalpha] of the plant (rad, rad/s), angles wrapped to (-pi, pi]."""
+        """[theta, alpha, dtheta, dalpha] of the plant (rad, rad/s), angles wrapped to (-pi, pi]; a device's
+        own plant gives its own (`BoardPlant.true_state`)."""
         with self.lock:
             self._sync()
             self._require_finite()
+            if self.device_plant is not None:
+                return self.device_plant.true_state()
             return np.array([wrap_angle(self.s.x[0]), wrap_angle(self.s.x[1]), self.s.x[2], self.s.x[3]])
 
     def set_true_state(self, state):
-        """Put the plant at [theta, alpha, dtheta, dalpha] (rad, rad/s); the encoders count the move."""
+        """Put the plant at [theta, alpha, dtheta, dalpha] (rad, rad/s), or a device's own plant in its own
+        state; the encoders count the move."""
+        if self.device_plant is not None:
+            with self.lock:
+                self._sync()
+                self.device_plant.set_true_state(np.asarray(state, dtype=np.float64))
+            return
         values = [float(v) for v in state]
         if len(values) != 4 or not all(math.isfinite(v) for v in values):
             raise ValueError(f"state must be 4 finite numbers, got {state!r}")
@@ -860,22 +908,24 @@ cdef class HIL:
             self.s.fault = bool(fault)
 
     def glitch_encoder(self, channel, counts):
-        """Make encoder `channel` (0 arm, 1 pendulum) jump by `counts` and count on from there."""
-        if channel not in (0, 1):
-            raise ValueError(f"encoder channel must be 0 or 1, got {channel!r}")
+        """Make encoder `channel` (a Qube's: 0 arm, 1 pendulum) jump by `counts` and count on from there."""
+        valid = self.chans_["encoder_inputs"]
+        if channel not in valid:
+            raise ValueError(f"encoder channel must be one of {valid}, got {channel!r}")
         with self.lock:
             self._sync()
-            self.encoder_offset[channel] += int(counts)
+            self.encoder_offset[<int>valid.index(channel)] += int(counts)
 
     def block_arm(self, blocked):
-        """Hold the arm still (True), e.g. against an obstacle, or let it go (False)."""
+        """Hold the arm still (True), e.g. against an obstacle, or let it go (False); the Furuta plant's."""
+        if self.device_plant is not None:
+            raise ValueError("block_arm holds a Qube's arm; this board carries a device's own plant")
         with self.lock:
             self._sync()
             self.s.arm_blocked = bool(blocked)
 
     def stall(self, seconds):
         """Let `seconds` of board time pass without a task read, as a stalled control loop does."""
-        cdef long substeps
         seconds = float(seconds)
         if not (math.isfinite(seconds) and seconds >= 0.0):
             raise ValueError(f"seconds must be a non-negative number, got {seconds}")
@@ -884,9 +934,7 @@ cdef class HIL:
             return
         with self.lock:
             self._require_open()
-            substeps = round(seconds / self.h)
-            with nogil:
-                self._advance(substeps)
+            self._integrate(round(seconds / self.h))
 
     def fail_read(self, exception, after=0):
         """Make the task read after `after` more reads raise `exception` (an exception instance)."""
@@ -898,17 +946,31 @@ cdef class HIL:
 
     @property
     def applied_voltage(self):
-        """Voltage (V, board sign) the amplifier applies to the motor now: 0 while it is disabled."""
+        """Voltage (V, board sign) the amplifier applies to the motor now: 0 while it is disabled. With a
+        device's own plant, an array: one per analog output."""
+        cdef double[::1] volts
+        cdef unsigned char[::1] enabled
         with self.lock:
             self._sync()
-            return self._applied()
+            if self.device_plant is None:
+                return self._applied()
+            volts, enabled = np.zeros(self.n_analog_outputs), np.zeros(self.n_analog_outputs, dtype=np.uint8)
+            self._device_outputs(volts, enabled)
+            return np.asarray(volts).copy()
 
     @property
     def amplifier_enabled(self):
-        """True if the amplifier drives the motor (enabled, no fault, no stall error)."""
+        """True if the amplifier drives the motor (enabled, no fault, no stall error); with a device's own
+        plant, if it drives any of them."""
+        cdef double[::1] volts
+        cdef unsigned char[::1] enabled
         with self.lock:
             self._sync()
-            return bool(self._amplifier_on())
+            if self.device_plant is None:
+                return bool(self._amplifier_on())
+            volts, enabled = np.zeros(self.n_analog_outputs), np.zeros(self.n_analog_outputs, dtype=np.uint8)
+            self._device_outputs(volts, enabled)
+            return bool(np.asarray(enabled).any())
 
     @property
     def time(self):
@@ -924,7 +986,10 @@ cdef class HIL:
 
     @property
     def plant(self):
-        """The plant's parameters by long name (a copy); set when the board opens."""
+        """The plant's parameters by long name (a copy); set when the board opens. A device's own plant:
+        the plant itself."""
+        if self.device_plant is not None:
+            return self.device_plant
         return dict(self.plant_values or {})
 
     @property
@@ -958,30 +1023,157 @@ cdef class HIL:
         return 0
 
     cdef inline bint _amplifier_on(self) noexcept nogil:
-        return self.out.enable and not self.s.fault and not self.s.stall_error
+        return self.out.enable[0] and not self.s.fault and not self.s.stall_error
 
     cdef inline double _applied(self) noexcept nogil:
-        return _clamp(self.out.analog, self.p.v_limit) if self._amplifier_on() else 0.0
+        return _clamp(self.out.analog[0], self.p.v_limit) if self._amplifier_on() else 0.0
 
     cdef void _encoder_positions(self, double* positions) noexcept nogil:
         positions[0] = ARM_SIGN * self.s.x[0] * COUNTS_PER_RADIAN
         positions[1] = PENDULUM_SIGN * (self.s.x[1] - PI) * COUNTS_PER_RADIAN
 
+    cdef int _all_encoder_positions(self, double* positions) except -1:
+        """Every encoder's position (counts, before the board's offsets), the plant's own or the Furuta's."""
+        if self.device_plant is None:
+            self._encoder_positions(positions)
+            return 0
+        for j, value in enumerate(self.device_plant.encoder_positions()):
+            positions[j] = value
+        return 0
+
     cdef void _sample(self, Sample* sample) noexcept nogil:
         cdef double positions[2]
         if self.s.diverged:                                 # nothing to cast to counts: the read raises
-            sample.current = sample.tachometer = sample.pendulum_tachometer = 0.0
+            sample.analog[0] = sample.other[0] = sample.other[1] = 0.0
             sample.encoder[0] = sample.encoder[1] = 0
             return
         self._encoder_positions(positions)
-        sample.current = ARM_SIGN * self.s.x[4]
+        sample.analog[0] = ARM_SIGN * self.s.x[4]
         sample.encoder[0] = self.encoder_offset[0] + <int>floor(positions[0])
         sample.encoder[1] = self.encoder_offset[1] + <int>floor(positions[1])
         sample.digital[_FAULT] = self.s.fault
         sample.digital[_STALL_DETECTED] = self.s.stall_detected
         sample.digital[_STALL_ERROR] = self.s.stall_error
-        sample.tachometer = ARM_SIGN * self.s.x[2] * COUNTS_PER_RADIAN
-        sample.pendulum_tachometer = PENDULUM_SIGN * self.s.x[3] * COUNTS_PER_RADIAN
+        sample.other[0] = ARM_SIGN * self.s.x[2] * COUNTS_PER_RADIAN
+        sample.other[1] = PENDULUM_SIGN * self.s.x[3] * COUNTS_PER_RADIAN
+
+    # -- a device's own plant ---------------------------------------------------------------
+
+    cdef int _use_channels(self, dict chans) except -1:
+        self.chans_ = chans
+        self.n_analog_outputs = len(chans["analog_outputs"])
+        self.n_digital_outputs = len(chans["digital_outputs"])
+        return 0
+
+    cdef int _use_device_plant(self, plant) except -1:
+        c = plant.channels
+        for kind, limit in (("analog_outputs", MAX_CHANNELS), ("digital_outputs", MAX_CHANNELS),
+                            ("analog_inputs", MAX_CHANNELS), ("encoder_inputs", MAX_CHANNELS),
+                            ("other_inputs", MAX_OTHER_INPUTS)):
+            if len(getattr(c, kind)) > limit:
+                raise ValueError(f"the substitute board offers at most {limit} {kind}, the plant declares "
+                                 f"{getattr(c, kind)}")
+        self.device_plant = plant
+        self._use_channels({"analog_outputs": tuple(c.analog_outputs),
+                            "digital_outputs": tuple(c.digital_outputs),
+                            "analog_inputs": tuple(c.analog_inputs), "encoder_inputs": tuple(c.encoder_inputs),
+                            "digital_inputs": (), "other_inputs": tuple(c.other_inputs)})
+        return 0
+
+    cdef list _places(self, channels, num_channels, Py_ssize_t buffer_length, str kind):
+        """The places on this board of `channels` of `kind` (a key of its channel table), checked as
+        `_channels` checks them."""
+        valid = self.chans_[kind]
+        chans = _channels(channels, num_channels, buffer_length, CHANNEL_KINDS[kind], valid,
+                          "a Qube" if self.device_plant is None else self.device_plant.channels.card_type)
+        if kind == "other_inputs" and self.device_plant is None:
+            self._check_other_inputs(chans)
+        return [valid.index(c) for c in chans]
+
+    cdef int _device_outputs(self, double[::1] volts, unsigned char[::1] enabled) except -1:
+        """The voltages the amplifiers apply now (V, within their range; 0 where disabled) and which
+        are enabled."""
+        cdef double limit = self.device_plant.channels.voltage_limit
+        cdef int j
+        for j in range(self.n_analog_outputs):
+            enabled[j] = (self.out.enable[j if self.n_digital_outputs > 1 else 0]
+                          and not self.s.fault)
+            volts[j] = _clamp(self.out.analog[j], limit) if enabled[j] else 0.0
+        return 0
+
+    cdef int _device_sample(self, Sample* sample) except -1:
+        """The present sample of the device's plant; a plant whose encoders leave the finite range has
+        diverged (the read raises)."""
+        cdef int j
+        plant = self.device_plant
+        positions = plant.encoder_positions()
+        if not (np.all(np.isfinite(positions)) and np.all(np.abs(positions) < 1e9)):
+            self.s.diverged = True
+            return 0
+        for j, value in enumerate(positions):
+            sample.encoder[j] = self.encoder_offset[j] + <int>floor(value)
+        for j, value in enumerate(plant.analog_inputs()):
+            sample.analog[j] = value
+        for j, value in enumerate(plant.other_inputs()):
+            sample.other[j] = value
+        return 0
+
+    cdef int _expire_watchdog_if_due(self) noexcept nogil:
+        cdef int j
+        if self.wd.running and not self.wd.expired and self.s.t >= self.wd.deadline - 1e-12:
+            self.wd.expired = True
+            for j in range(self.n_analog_outputs):
+                self.out.analog[j] = self.wd.analog_state[j]
+            for j in range(self.n_digital_outputs):
+                if self.wd.digital_state[j] != 3:          # NO_CHANGE
+                    self.out.enable[j] = self.wd.digital_state[j] == 1
+        return 0
+
+    cdef int _advance_device(self, long substeps) except -1:
+        """`_advance` for a device's own plant: the plant moves from event to event (a sample due, the
+        watchdog's deadline) in one call each, under the outputs as they are between them."""
+        cdef long n, due
+        cdef double[::1] volts = np.zeros(self.n_analog_outputs)
+        cdef unsigned char[::1] enabled = np.zeros(self.n_analog_outputs, dtype=np.uint8)
+        while substeps > 0:
+            n = substeps
+            if self.smp.running and self.smp.remaining != 0 and self.smp.countdown < n:
+                n = self.smp.countdown
+            if self.wd.running and not self.wd.expired:
+                due = max(1, <long>ceil((self.wd.deadline - 1e-12 - self.s.t) / self.h - 1e-9))
+                n = min(n, due)
+            if not self.s.diverged:
+                self._device_outputs(volts, enabled)
+                self.device_plant.advance(n * self.h, np.asarray(volts).copy(), np.asarray(enabled, dtype=bool))
+            self.s.t += n * self.h
+            substeps -= n
+            self._expire_watchdog_if_due()
+            if self.smp.running and self.smp.remaining != 0:
+                self.smp.countdown -= n
+                if self.smp.countdown == 0:
+                    self.smp.countdown = self.smp.substeps_per_sample
+                    self._take_present_sample()
+        return 0
+
+    cdef int _take_present_sample(self) except -1:
+        """`_take_sample`, of whichever plant the board carries."""
+        cdef long slot
+        if self.device_plant is None:
+            self._take_sample()
+            return 0
+        slot = self._claim_slot()
+        if slot >= 0:
+            self._device_sample(&self.smp.ring[slot])
+        return 0
+
+    cdef int _integrate(self, long substeps) except -1:
+        """Advance the board by `substeps` substeps, the Furuta plant in C without the GIL."""
+        if self.device_plant is None:
+            with nogil:
+                self._advance(substeps)
+        else:
+            self._advance_device(substeps)
+        return 0
 
     cdef long _read_task(self, Task task, long n, double[::1] analog_buffer, int[::1] encoder_buffer,
                          signed char[::1] digital_buffer, double[::1] other_buffer) except -1:
@@ -1008,7 +1200,7 @@ cdef class HIL:
         for k in range(n):
             sample = &self.smp.ring[self.smp.head]
             for j in range(task.n_analog):
-                analog_buffer[k * task.n_analog + j] = sample.current
+                analog_buffer[k * task.n_analog + j] = sample.analog[task.analog[j]]
             for j in range(task.n_encoder):
                 c = task.encoder[j]
                 encoder_buffer[k * task.n_encoder + j] = sample.encoder[c]
@@ -1016,8 +1208,7 @@ cdef class HIL:
                 c = task.digital[j]
                 digital_buffer[k * task.n_digital + j] = sample.digital[c]
             for j in range(task.n_other):
-                other_buffer[k * task.n_other + j] = (
-                    sample.tachometer if task.other[j] == OTHER_TACHOMETER else sample.pendulum_tachometer)
+                other_buffer[k * task.n_other + j] = sample.other[task.other[j]]
             self.smp.head = (self.smp.head + 1) % self.smp.capacity
             self.smp.count -= 1
         return n
@@ -1029,26 +1220,36 @@ cdef class HIL:
             self._require_open()
             self._sync()
             self._require_finite()
-            self._sample(&sample)
+            if self.device_plant is None:
+                self._sample(&sample)
+            else:
+                self._device_sample(&sample)
+                self._require_finite()
         return sample
 
     cdef void _take_sample(self) noexcept nogil:
         """Put the present sample into the task buffer, by the overflow mode if it is full."""
+        cdef long slot = self._claim_slot()
+        if slot >= 0:
+            self._sample(&self.smp.ring[slot])
+
+    cdef long _claim_slot(self) noexcept nogil:
+        """The task buffer's slot for a new sample, by the overflow mode if it is full; -1: none."""
         cdef long slot
         if self.smp.remaining > 0:
             self.smp.remaining -= 1
         if self.smp.count == self.smp.capacity:
             self.smp.overflows += 1
             if self.smp.overflow_mode == 2:                 # DISCARD_ON_OVERFLOW
-                return
+                return -1
             if self.smp.overflow_mode == 0:                 # ERROR_ON_OVERFLOW: keep the buffer, fail the read
                 self.smp.overflow_pending = True
-                return
+                return -1
             self.smp.head = (self.smp.head + 1) % self.smp.capacity
             self.smp.count -= 1
         slot = (self.smp.head + self.smp.count) % self.smp.capacity
-        self._sample(&self.smp.ring[slot])
         self.smp.count += 1
+        return slot
 
     cdef void _advance(self, long substeps) noexcept nogil:
         """Integrate `substeps` substeps, expiring the watchdog and taking samples when due."""
@@ -1061,11 +1262,7 @@ cdef class HIL:
                 if not (fabs(self.s.x[2]) <= _DIVERGENCE_SPEED and fabs(self.s.x[3]) <= _DIVERGENCE_SPEED
                         and fabs(self.s.x[0]) <= 1e6 and fabs(self.s.x[1]) <= 1e6 and fabs(self.s.x[4]) <= 1e6):
                     self.s.diverged = True
-            if self.wd.running and not self.wd.expired and self.s.t >= self.wd.deadline - 1e-12:
-                self.wd.expired = True
-                self.out.analog = self.wd.analog_state
-                if self.wd.digital_state != 3:              # NO_CHANGE
-                    self.out.enable = self.wd.digital_state == 1
+            self._expire_watchdog_if_due()
             if self.smp.running and self.smp.remaining != 0:
                 self.smp.countdown -= 1
                 if self.smp.countdown == 0:
@@ -1079,22 +1276,18 @@ cdef class HIL:
             return 0
         substeps = <long>floor((time.perf_counter() - self.wall_origin - self.s.t) / self.h + 1e-9)
         if substeps > 0:
-            with nogil:
-                self._advance(substeps)
+            self._integrate(substeps)
         return 0
 
     cdef bint _wait_for_samples(self, long n) except -1:
         """Make `n` samples available (integrating or sleeping); False if the task has finished."""
-        cdef long substeps
         while self.smp.count < n:
             if not self.smp.running:
                 raise HILError(INVALID_TASK, "the task was stopped while being read")
             if self.smp.remaining == 0:
                 return self.smp.count >= n
             if not self.realtime_:
-                substeps = self.smp.countdown
-                with nogil:
-                    self._advance(substeps)
+                self._integrate(self.smp.countdown)
                 continue
             due = self.wall_origin + self.s.t + self.smp.countdown * self.h
             delay = due - time.perf_counter()
@@ -1277,7 +1470,7 @@ cdef class ClearSamples:
                 clear = not b.wd.expired and isfinite(self.volts[0])
             if not clear:
                 return reloaded, overflows
-            b.out.analog = self.volts[0]
+            b.out.analog[0] = self.volts[0]
             if led is not None:
                 for j in range(3):
                     value = 0.0 if 0.0 > colour[j] else colour[j]   # Python's min(max(value, 0.0), 1.0)
@@ -1285,7 +1478,7 @@ cdef class ClearSamples:
         return None
 
 
-cdef list _channels(channels, num_channels, Py_ssize_t buffer_length, str kind, tuple valid):
+cdef list _channels(channels, num_channels, Py_ssize_t buffer_length, str kind, tuple valid, str where):
     """Channel numbers as a list, checking the count, the channels and the buffer's length (-1: none)."""
     cdef long n = num_channels
     if n < 0:
@@ -1299,7 +1492,7 @@ cdef list _channels(channels, num_channels, Py_ssize_t buffer_length, str kind, 
     chans = [int(channels[j]) for j in range(n)]
     for c in chans:
         if c not in valid:
-            raise HILError(INVALID_CHANNEL, f"{kind} channel {c} does not exist on a Qube; valid: {valid}")
+            raise HILError(INVALID_CHANNEL, f"{kind} channel {c} does not exist on {where}; valid: {valid}")
     return chans
 
 

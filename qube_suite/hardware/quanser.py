@@ -74,6 +74,7 @@ from typing import Any, NoReturn
 import numpy as np
 
 from qube_suite.hardware import conventions
+from qube_suite.hardware.board_plant import BoardPlant
 from qube_suite.hardware.errors import (
     AmplifierFaultError,
     ArmLimitError,
@@ -103,6 +104,11 @@ SDK_HELP = (
     "(on Windows <SDK> is %QSDK_DIR%). Without a Qube, use board='simulated'.")
 
 
+AMPLIFIER_RANGE = 15.0
+"""Largest `max_voltage` (V) on a Qube: its amplifier range, +-15 V (see `plant.py`); a device declares
+its own (`Device.amplifier_range`)."""
+
+
 @dataclasses.dataclass(frozen=True)
 class Device:
     """A Quanser device's channels, as the wrapper uses them."""
@@ -119,6 +125,15 @@ class Device:
     stall_error_inputs: tuple[int, ...]         # digital inputs: 1 = stall error (amplifier disabled)
     arm_encoder: int | None = 0                 # encoder channel watched by `arm_limit`
     card_options: str = ""                      # set by set_card_specific_options at open ("" = none)
+    radians_per_count: tuple[float, ...] | None = None  # per encoder input; None: a Qube's, 2 pi / 2048 each
+    amplifier_range: float = AMPLIFIER_RANGE    # the amplifier's largest output (V): the largest max_voltage
+
+    @property
+    def encoder_scales(self) -> tuple[float, ...]:
+        """Radians per count of each encoder input, in `encoder_inputs` order."""
+        if self.radians_per_count is None:
+            return (conventions.RADIANS_PER_COUNT,) * len(self.encoder_inputs)
+        return self.radians_per_count
 
     @property
     def digital_inputs(self) -> tuple[int, ...]:
@@ -174,9 +189,6 @@ rest falls within a few ms, as the arm takes up speed."""
 RETURN_SLACK = math.radians(5.0)
 """How much farther out (rad) than at the last sample of 0 V the arm may get while `return_arm`
 pushes it inwards beyond `arm_limit` before the return stops (the motor would be driving it out)."""
-
-AMPLIFIER_RANGE = 15.0
-"""Largest `max_voltage` (V): the Qube's amplifier range, +-15 V (see `plant.py`)."""
 
 LED_OFF_STATE = (1.0, 0.0, 0.0)
 """The LED's colour after `close()`: red."""
@@ -305,7 +317,8 @@ class QuanserWrapper:
     the device's board type (a real board through Quanser's SDK). identifier: the
     board number. frequency (Hz): the sample rate that `action` follows.
     max_voltage (V): the clip. plant: parameters of the substitute's plant
-    (`qube_suite.hardware.plant`). realtime: the substitute follows the wall clock
+    (`qube_suite.hardware.plant`), or a device's own plant for it
+    (`qube_suite.hardware.board_plant.BoardPlant`). realtime: the substitute follows the wall clock
     (default False, fast); a real board always does. watchdog_timeout (s): the
     board zeroes its outputs when no action reloads it for this long.
     arm_limit (rad, or None): the largest arm angle from the arm encoder's zero.
@@ -318,7 +331,7 @@ class QuanserWrapper:
 
     def __init__(self, device: Device, board: str = SIMULATED, identifier: str = "0", *,
                  frequency: float = 250.0, max_voltage: float = 10.0,
-                 plant: dict[str, float] | None = None, realtime: bool | None = None,
+                 plant: dict[str, float] | BoardPlant | None = None, realtime: bool | None = None,
                  watchdog_timeout: float = 0.1, arm_limit: float | None = math.radians(120.0),
                  max_missed_samples: int | None = 10, max_encoder_speed: float | None = MAX_ENCODER_SPEED,
                  zero_encoders: bool = False):
@@ -348,8 +361,8 @@ class QuanserWrapper:
             raise ValueError(f"watchdog_timeout must be at most {MAX_WATCHDOG_TIMEOUT:g} s "
                              "(MAX_WATCHDOG_TIMEOUT: longer leaves a dead process's motor driven too long), "
                              f"got {watchdog_timeout:g}")
-        if max_voltage > AMPLIFIER_RANGE:
-            raise ValueError(f"max_voltage must be at most the amplifier's {AMPLIFIER_RANGE:g} V, "
+        if max_voltage > device.amplifier_range:
+            raise ValueError(f"max_voltage must be at most the amplifier's {device.amplifier_range:g} V, "
                              f"got {max_voltage}")
         if frequency > MAX_FREQUENCY:
             raise ValueError(f"frequency must be at most {MAX_FREQUENCY:g} Hz, got {frequency}")
@@ -369,14 +382,21 @@ class QuanserWrapper:
                                                                              max_encoder_speed))
                                                   and max_encoder_speed > 0):
             raise ValueError(f"max_encoder_speed must be positive or None, got {max_encoder_speed}")
-        if simulated:
+        scales = device.radians_per_count
+        if scales is not None and len(scales) != len(device.encoder_inputs):
+            raise ValueError("radians_per_count needs one scale per encoder input")
+        if isinstance(plant, BoardPlant):
+            if plant.channels.card_type != device.board_type:
+                raise ValueError(f"the plant is a {plant.channels.card_type}'s, "
+                                 f"the device a {device.board_type}")
+        elif simulated:
             plant_parameters(device.board_type, plant)  # a misspelt name fails now, not at open()
         self.device = device
         self.board_name = board
         self.identifier = identifier
         self.frequency = float(frequency)
         self.max_voltage = float(max_voltage)
-        self.plant = None if plant is None else dict(plant)
+        self.plant = plant if plant is None or isinstance(plant, BoardPlant) else dict(plant)
         self.realtime = bool(realtime) if simulated else True
         self.watchdog_timeout = float(watchdog_timeout)
         self.arm_limit = arm_limit
@@ -521,7 +541,8 @@ class QuanserWrapper:
 
         d = self.device
         if (hil_class is not _hil_sim.HIL or type(board) is not _hil_sim.HIL or self.realtime
-                or d.analog_outputs != (0,) or d.led_outputs != _hil_sim.OTHER_LED):
+                or d.analog_outputs != (0,) or d.led_outputs != _hil_sim.OTHER_LED
+                or d.radians_per_count is not None):
             return None
         return _hil_sim.ClearSamples(
             board, self._task, self._currents, self._encoders, self._digitals, self._others, self._volts,
@@ -808,8 +829,10 @@ class QuanserWrapper:
         last, self._last_counts = self._last_counts, counts
         if self.max_encoder_speed is None or last is None:
             return
-        limit = self.max_encoder_speed * (missed + 1) / self.frequency / conventions.RADIANS_PER_COUNT + 1
-        for channel, now, before in zip(self.device.encoder_inputs, counts, last, strict=True):
+        turn = self.max_encoder_speed * (missed + 1) / self.frequency
+        for channel, scale, now, before in zip(self.device.encoder_inputs, self.device.encoder_scales, counts,
+                                               last, strict=True):
+            limit = turn / scale + 1
             if abs(now - before) > limit:
                 self._last_counts = None
                 self._stop(EncoderGlitchError(

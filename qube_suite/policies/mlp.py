@@ -16,7 +16,8 @@ one JSON record, nothing pickled:
   `epsilon`, `clip`, `voltage_limit` (V), `observation_size` (4, or 5 with a
   target), `history` (the number k of past observations and voltages the
   network also sees, 0 for none: `qube_suite.policies.history`),
-  `task`, `algo`, and the record of its training.
+  `task`, `algo`, and the record of its training; `action_size`, only for a device with
+  several motors: the number of voltages the last layer gives (1 without it).
 
 Format 1 is format 2 without `history` (no history); this module reads both and
 refuses other formats, and files whose layers do not fit their features and
@@ -86,6 +87,8 @@ class MLPPolicy:
         e.g. the trig one. None for another feature map (a device's `plain` policy), which reads its
         observation's values in order."""
         self.history = int(self.meta.get("history", 0))
+        self.action_size = int(self.meta.get("action_size", 1))
+        """Voltages per action: 1, or one per motor of a device with several."""
         self._memory: History | None = None
         self._last: tuple[np.ndarray, np.ndarray] | None = None
 
@@ -94,7 +97,8 @@ class MLPPolicy:
         self._memory, self._last = None, None
 
     def actions(self, observations: np.ndarray) -> np.ndarray:
-        """Voltages (V), shape (n,), for standard observations of shape (n, 4) or (n, 5) of n worlds.
+        """Voltages (V), shape (n,), for standard observations of shape (n, 4) or (n, 5) of n worlds;
+        shape (n, action_size) for a policy of several voltages.
 
         With `history`, successive calls are successive steps of the same n worlds
         (since the last `reset`, or since a call with a different n).
@@ -108,7 +112,7 @@ class MLPPolicy:
             x = x @ weight.T + bias
             if i < last:
                 x = self._activation(x)
-        volts = x[:, 0]
+        volts = x[:, 0] if self.action_size == 1 else x
         if self.meta["squash"]:
             volts = np.tanh(volts) * self.voltage_limit
         volts = np.clip(volts, -self.voltage_limit, self.voltage_limit)
@@ -126,14 +130,16 @@ class MLPPolicy:
         self._last = (features, None)
         return self._memory.inputs(features)
 
-    def __call__(self, observation: Any) -> float:
-        """Motor voltage (V) for one observation of the policy's task."""
+    def __call__(self, observation: Any) -> float | np.ndarray:
+        """Motor voltage (V) for one observation of the policy's task; an array of `action_size`
+        voltages for a policy of several."""
         if self.meta["feature_map"] != "trig":
             row = flat_values(observation, self._size)
         else:
             state, target = self.observation_layout.split(observation)
             row = np.append(state, target) if self._size == 5 else state
-        return float(self.actions(row[None, :])[0])
+        volts = self.actions(row[None, :])[0]
+        return float(volts) if self.action_size == 1 else volts
 
     def close(self) -> None:
         """Nothing to release."""
@@ -228,8 +234,15 @@ def _check(weights: list[np.ndarray], biases: list[np.ndarray], mean: np.ndarray
             raise ValueError(f"layer {i}: weight {weight.shape} and bias {bias.shape} do not fit "
                              f"{inputs} inputs{layout}")
         inputs = weight.shape[0]
-    if inputs != 1:
-        raise ValueError(f"the last layer gives {inputs} outputs, not one voltage")
+    outputs = meta.get("action_size", 1)
+    if not (isinstance(outputs, int) and not isinstance(outputs, bool) and outputs >= 1):
+        raise ValueError(f"action_size must be a positive integer, got {outputs!r}")
+    if outputs > 1 and history:
+        raise ValueError("a policy with history gives one voltage; this one has action_size "
+                         f"{outputs}")
+    if inputs != outputs:
+        raise ValueError(f"the last layer gives {inputs} outputs, not "
+                         f"{'one voltage' if outputs == 1 else f'{outputs} voltages'}")
     arrays = [*weights, *biases, mean, var]
     if not all(np.isfinite(a).all() for a in arrays):
         raise ValueError("weights or statistics are not finite")

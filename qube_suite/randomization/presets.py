@@ -39,6 +39,9 @@
   (`qube_suite.mjx`), where friction is a constraint that makes each step about ten
   times dearer; policies trained under it met the swing-up recipe's targets on the
   substitute, whose plant has friction (docs/gpu-training.md).
+- `actuation`: effects on the voltage alone, for any device whose domains take them (a device
+  with parameters of its own has none of the pendulum's to randomize): up to one control step of
+  actuation lag, a voltage offset of +-0.1 V and a dead zone of 0 to 0.2 V, on each motor.
 
 Friction and spring torques compare with the motor's kt / Rm = 0.005 N m per volt:
 1e-3 N m is the torque of 0.2 V.
@@ -147,5 +150,12 @@ PRESETS["sim2real_frictionless"] = {
     "parameters": {name: distribution for name, distribution in PRESETS["sim2real"]["parameters"].items()
                    if name not in ("arm_friction", "pendulum_friction")},
     "effects": PRESETS["sim2real"]["effects"],
+}
+PRESETS["actuation"] = {
+    "effects": {
+        "action_delay": {"steps": {"distribution": "uniform", "low": 0, "high": 1}},
+        "voltage_offset": {"voltage": {"distribution": "uniform", "low": -0.1, "high": 0.1}},
+        "dead_zone": {"voltage": {"distribution": "uniform", "low": 0.0, "high": 0.2}},
+    },
 }
 """Preset name -> config data (see `qube_suite.randomization.config`)."""

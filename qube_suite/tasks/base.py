@@ -40,7 +40,8 @@ def success_steps(control_frequency: float) -> int:
     return max(1, round(SUCCESS_TIME * control_frequency))
 
 
-def voltage_from_action(action: Any, limit: float, worlds: int | None = None, allow_number: bool = True):
+def voltage_from_action(action: Any, limit: float, worlds: int | None = None, allow_number: bool = True,
+                        shape: tuple[int, ...] = ACTION_SHAPE):
     """The motor voltage for `action`, finite and clipped to +-`limit` (V).
 
     One Qube (`worlds` None): an array-like of shape (1,), or, if `allow_number`
@@ -48,7 +49,12 @@ def voltage_from_action(action: Any, limit: float, worlds: int | None = None, al
     A batch of `worlds` Qubes: shape (worlds, 1); returns a new float64 array of shape
     (worlds,). A wrong shape raises ValueError("Action dimension mismatch ...",
     Gymnasium's wording), as do NaN, inf and non-numbers. See docs/conventions.md.
+
+    A device with several motors passes its action's `shape` (two motors: (2,)): the voltages are then a
+    new float64 array of that shape, or of (worlds, *shape) for a batch, each clipped to +-`limit`.
     """
+    if shape != ACTION_SHAPE:
+        return _voltage_array_from_action(action, limit, shape if worlds is None else (worlds, *shape))
     if worlds is not None:
         return _voltages_from_actions(action, limit, worlds)
     if type(action) is np.ndarray and action.shape == ACTION_SHAPE and action.dtype.kind == "f":
@@ -88,6 +94,22 @@ def _voltages_from_actions(actions: Any, limit: float, worlds: int) -> np.ndarra
     return np.minimum(np.maximum(volts, -limit, out=volts), limit, out=volts)
 
 
+def _voltage_array_from_action(action: Any, limit: float, shape: tuple[int, ...]) -> np.ndarray:
+    try:
+        array = np.asarray(action)
+    except Exception as error:  # ragged sequences and other oddities
+        raise ValueError(f"Action dimension mismatch: an action has shape {shape}, got {action!r}") from error
+    if array.shape != shape:
+        raise ValueError(f"Action dimension mismatch: an action has shape {shape}, got shape {array.shape} "
+                         f"({action!r})")
+    if array.dtype.kind not in "fiu":
+        raise ValueError(f"an action is numbers (V), got {action!r} with dtype {array.dtype}")
+    volts = array.astype(np.float64)
+    if not np.isfinite(volts).all():
+        raise ValueError(f"action must be finite, got {volts}")
+    return np.clip(volts, -limit, limit, out=volts)
+
+
 class QubeTask(base.Task):
     """Base of the Qube tasks.
 
@@ -110,6 +132,12 @@ class QubeTask(base.Task):
     follows_target = False
     """Whether the arm follows a target that the observation includes."""
 
+    action_shape: tuple[int, ...] = ACTION_SHAPE
+    """The action's shape: one voltage per motor of the device (the Qube's one)."""
+
+    max_voltage_limit: float = MAX_VOLTAGE_LIMIT
+    """Largest `voltage_limit` (V) the device's tasks accept."""
+
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         if cls.get_termination is not QubeTask.get_termination:
@@ -119,8 +147,9 @@ class QubeTask(base.Task):
 
     def __init__(self, voltage_limit: float = DEFAULT_VOLTAGE_LIMIT, observation: str = "state",
                  random: int | np.random.RandomState | None = None, worlds: int | None = None):
-        if not (is_number(voltage_limit) and 0.0 < voltage_limit <= MAX_VOLTAGE_LIMIT):
-            raise ValueError(f"voltage_limit must be in (0, {MAX_VOLTAGE_LIMIT:g}] V, got {voltage_limit!r}")
+        if not (is_number(voltage_limit) and 0.0 < voltage_limit <= self.max_voltage_limit):
+            raise ValueError(f"voltage_limit must be in (0, {self.max_voltage_limit:g}] V, "
+                             f"got {voltage_limit!r}")
         if observation not in OBSERVATION_MODES:
             raise ValueError(f"observation must be one of {OBSERVATION_MODES}, got {observation!r}")
         check_seed(random)
@@ -136,8 +165,8 @@ class QubeTask(base.Task):
             np.random.RandomState(None if random is None else random + world) for world in range(1, worlds)))
         self._voltage_limit = float(voltage_limit)
         self._trig = observation == "trig"
-        limit = np.full(ACTION_SHAPE, self._voltage_limit)
-        self._action_spec = specs.BoundedArray(ACTION_SHAPE, np.float64, -limit, limit, name="voltage")
+        limit = np.full(self.action_shape, self._voltage_limit)
+        self._action_spec = specs.BoundedArray(self.action_shape, np.float64, -limit, limit, name="voltage")
         self._layout: list[tuple[str, int]] | None = None
 
     @property
@@ -181,9 +210,10 @@ class QubeTask(base.Task):
         return self.start.draw(random)
 
     def before_step(self, action, physics) -> None:
-        """Validate and limit `action` (shape (1,), or (worlds, 1) in a batch), then apply it; a bad
-        action raises and changes nothing."""
-        physics.set_voltage(voltage_from_action(action, self._voltage_limit, self._worlds))
+        """Validate and limit `action` (shape `action_shape`, or (worlds, *action_shape) in a batch), then
+        apply it; a bad action raises and changes nothing."""
+        physics.set_voltage(voltage_from_action(action, self._voltage_limit, self._worlds,
+                                                shape=self.action_shape))
 
     def after_step(self, physics) -> None:
         """Advance the task's own processes (none by default)."""

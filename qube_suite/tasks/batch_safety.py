@@ -27,7 +27,8 @@ within the arm's range, one near upright beyond it."""
 PROBE_TIMES = np.array([0.52, 1.37])
 """Time (s) of the two probe worlds, both past the start."""
 PROBE_ACTIONS = np.array([[1.25], [-40.0]])
-"""Actions (V) of the two probe worlds: one inside any voltage limit, one beyond."""
+"""Actions (V) of the two probe worlds: one inside any voltage limit, one beyond (every motor of a
+device with several gets the same)."""
 
 
 class BatchSafetyError(TypeError):
@@ -136,8 +137,10 @@ def check_batch_safety(factory: Callable, name: str | None = None, seed: int = 0
             task.initialize_episode(physics)
         return physics.qube_state()
 
+    actions = np.broadcast_to(PROBE_ACTIONS, (worlds, *batch_task.action_shape)).copy()
+
     def before_step(task, physics):
-        task.before_step(PROBE_ACTIONS if physics is batch else PROBE_ACTIONS[qubes.index(physics)], physics)
+        task.before_step(actions if physics is batch else actions[qubes.index(physics)], physics)
         return physics.voltage()
 
     def after_step(task, physics):  # seen through what it changes: the observation

@@ -32,6 +32,7 @@ from typing import Any
 
 from qube_suite import policies, suite
 from qube_suite import randomization as randomization_configs
+from qube_suite.arguments import check_keywords
 from qube_suite.training.hyperparameters import EXPLORING_STARTS, HYPERPARAMETERS
 
 RL_EXTRA = ("stable_baselines3", "torch", "tensorboard")
@@ -69,7 +70,8 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
           checkpoints: int = 10, progress: bool = True, hyperparameters: dict[str, Any] | None = None,
           init: str | pathlib.Path | None = None, exploring_starts: float | None = None,
           resume: bool = False, task_kwargs: dict[str, Any] | None = None,
-          calibration: str | pathlib.Path | None = None) -> TrainingResult:
+          calibration: str | pathlib.Path | None = None,
+          environment_kwargs: dict[str, Any] | None = None) -> TrainingResult:
     """Train `algo` ("ppo" or "sac") on `task` for `steps` environment steps and export the policy.
 
     PPO rounds `steps` up to whole rollouts (n_steps x num_envs).
@@ -88,6 +90,9 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
             `init`, the exploration noise's log-std to start from (default: a run's own;
             from a policy file, `policy_kwargs`' `log_std_init`). `history` defaults to
             the init's.
+        environment_kwargs: the environments' `control_frequency` and `time_limit` (as
+            `suite.load`); not on the pendulum's native vector environment (give `domain_kwargs`
+            or train another domain).
         task_kwargs: task settings for training and evaluation, e.g. a follow task's
             target schedule (`{"target": "steps"}`); as `suite.load`, without `random`.
         init: directory of a previous run of `algo` on a task with the same
@@ -130,6 +135,8 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
     if "random" in task_kwargs:
         raise ValueError("task_kwargs: training seeds the environments itself (seed=); drop 'random'")
     suite.make_task(domain, task, task_kwargs)  # bad task settings fail here, before any environment
+    environment_kwargs = dict(environment_kwargs or {})
+    check_keywords(environment_kwargs, ("control_frequency", "time_limit"), "environment_kwargs")
     if init is not None and not pathlib.Path(init).is_dir() and policies.names_a_policy(init):
         if algo != "ppo":
             raise ValueError("init: only PPO runs start from a PPO policy file; give SAC a run directory")
@@ -150,12 +157,12 @@ def train(task: str, algo: str = "ppo", steps: int = 2_000_000, seed: int = 0, r
         hyperparameters = {**(hyperparameters or {}), "history": history}
     return _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
                   eval_episodes, checkpoints, progress, {**HYPERPARAMETERS[algo], **(hyperparameters or {})},
-                  init, exploring_starts, resume, task_kwargs, calibration)
+                  init, exploring_starts, resume, task_kwargs, calibration, environment_kwargs)
 
 
 def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain_kwargs, evaluations,
            eval_episodes, checkpoints, progress, hyperparameters, init, exploring_starts,
-           resume, task_kwargs, calibration) -> TrainingResult:
+           resume, task_kwargs, calibration, environment_kwargs) -> TrainingResult:
     import stable_baselines3
     import torch
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
@@ -179,7 +186,7 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     if algo == "ppo":  # minibatches no larger than a rollout
         settings["batch_size"] = min(settings["batch_size"], settings["n_steps"] * num_envs)
     env_kwargs = {"domain": domain, "randomization": randomization, "domain_kwargs": domain_kwargs,
-                  "task_kwargs": task_kwargs}
+                  "task_kwargs": task_kwargs, "environment_kwargs": environment_kwargs}
     if exploring_starts is None:
         exploring_starts = EXPLORING_STARTS.get(task, 0.0)
     starts = exploring_starts if domain == "qube" else 0.0
@@ -222,7 +229,9 @@ def _train(task, algo, steps, seed, randomization, domain, out, num_envs, domain
     source = None if init is None else str(init) if isinstance(init, pathlib.Path) else init.name
     record = {"algo": algo, "task": task, "domain": domain, "randomization": _describe(randomization),
               "calibration": None if calibration is None else str(calibration),
-              "domain_kwargs": domain_kwargs, "task_kwargs": task_kwargs, "seed": seed, "num_envs": num_envs,
+              "domain_kwargs": domain_kwargs, "task_kwargs": task_kwargs,
+              **({"environment_kwargs": environment_kwargs} if environment_kwargs else {}),
+              "seed": seed, "num_envs": num_envs,
               "init": source, "exploring_starts": starts, "resumed_from_steps": resumed,
               "hyperparameters": hyperparameters, "stable_baselines3": stable_baselines3.__version__}
     start = time.perf_counter()

@@ -84,12 +84,16 @@ def _single(env_id: str, **kwargs: Any):
 
 def raw_vec_env(task: str, num_envs: int, seed: int, domain: str = "qube", randomization: Any = None,
                 domain_kwargs: dict[str, Any] | None = None,
-                task_kwargs: dict[str, Any] | None = None) -> VecEnv:
+                task_kwargs: dict[str, Any] | None = None,
+                environment_kwargs: dict[str, Any] | None = None) -> VecEnv:
     """`num_envs` environments of `task` on `domain` with the standard observation, seeded
     `seed`, `seed + 1`, ... at their first reset; `task_kwargs` (e.g. a follow task's target
-    schedule) as in `suite.load`."""
+    schedule) and `environment_kwargs` (`control_frequency`, `time_limit`) as in `suite.load`."""
     env_id = gymnasium_id(task, domain)
-    task_kwargs = dict(task_kwargs or {})
+    task_kwargs = {**(task_kwargs or {}), **(environment_kwargs or {})}  # gymnasium.make takes both
+    if domain == "qube" and not domain_kwargs and environment_kwargs:
+        raise ValueError("environment_kwargs: the pendulum's native vector environment runs at its defaults; "
+                         "give domain_kwargs to train on single environments")
     if domain == "qube" and not domain_kwargs:
         venv = make_sb3_vec_env(env_id, num_envs=num_envs, threads=1, randomization=randomization,
                                 **task_kwargs)

@@ -40,6 +40,9 @@ def from_sb3(model: Any, observation_mean: np.ndarray, observation_var: np.ndarr
             if activations else "tanh", "squash": squash, "epsilon": float(epsilon), "clip": float(clip),
             "voltage_limit": float(voltage_limit), "observation_size": int(observation_size),
             "history": int(history), "task": task, "algo": type(model).__name__.lower(), "training": training}
+    voltages = int(np.prod(model.action_space.shape))
+    if voltages > 1:  # a device with several motors; one voltage stays the format's default
+        meta["action_size"] = voltages
     weights = [layer.weight.detach().cpu().numpy() for layer in layers]
     biases = [layer.bias.detach().cpu().numpy() for layer in layers]
     return MLPPolicy(weights, biases, observation_mean, observation_var, meta, name=name)

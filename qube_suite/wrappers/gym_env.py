@@ -10,7 +10,6 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from qube_suite.conventions import ACTION_SHAPE
 from qube_suite.environment import Environment
 from qube_suite.media import DEFAULT_CAMERA, FrameRenderer
 from qube_suite.pacing import RealTimePacer
@@ -141,9 +140,10 @@ class QubeEnv(gymnasium.Env):
                 raise RuntimeError("the environment is closed; make a new one to run episodes")
             raise RuntimeError("no episode is running (never reset, or the last one ended); "
                                "call reset() before step()")
-        if not (type(action) is np.ndarray and action.shape == ACTION_SHAPE):
+        if not (type(action) is np.ndarray and action.shape == self._task.action_shape):
             try:
-                voltage_from_action(action, self._task.voltage_limit, allow_number=False)  # shape (1,)
+                voltage_from_action(action, self._task.voltage_limit, allow_number=False,
+                                    shape=self._task.action_shape)
             except ValueError:
                 self._physics.stop_motor()  # on hardware: 0 V before the refusal rises
                 raise
