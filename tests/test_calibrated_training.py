@@ -168,3 +168,17 @@ def test_the_randomization_contains_a_calibrated_latency():
     seconds = [randomizer.draw(rng).effects["action_delay"]["seconds"] for _ in range(40)]
     delays = {int(np.rint(s / 0.004)) for s in seconds}  # as the delay rounds them
     assert delays == {0, 1, 2, 3}  # 0 to 12 ms at 250 Hz: the Qube's 6 ms (1.5 steps) in the middle
+
+
+def test_the_randomization_contains_a_calibrated_dead_zone():
+    from qube_suite.devices.qube import simulation as qube
+    from qube_suite.randomization import Randomizer
+
+    measured = parameters.effects_of(parameters.REAL_QUBE_SERVO2)["voltage_deadzone"]
+    config = calibrated.randomization_for(parameters.REAL_QUBE_SERVO2)
+    physics = qube.make_physics(250.0)
+    randomizer = Randomizer(load_randomization(config), physics, 1.0 / 250.0)
+    rng = np.random.RandomState(0)
+    zones = [randomizer.draw(rng).effects["dead_zone"]["voltage"] for _ in range(200)]
+    assert 0.0 <= min(zones) < 0.2 * measured and 1.8 * measured < max(zones) <= 2.0 * measured
+    assert "dead_zone" not in calibrated.randomization_for(heavy_qube())["effects"]  # none measured

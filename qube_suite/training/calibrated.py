@@ -11,8 +11,11 @@ interval widened `WIDTH` times, and at least +-`MINIMUM_SPREAD` of the estimate
 its friction changes from run to run); the command delay from 0 to twice the
 calibration's latency where it measured one (a real Qube-Servo 2's 6 ms defeats
 `ppo:swingup_adaptive`, trained under delays of 0 or 1 step: docs/calibration.md);
+the voltage's dead zone from 0 to twice the calibration's where it measured one;
 the parameters a calibration does not estimate, and the other sensor and actuator
-effects, as in the `sim2real` preset.
+effects, as in the `sim2real` preset. Not drawn: the cable's rest angle and slack band
+and the encoders' offsets (`effects_of` gives them to a simulation loaded with the
+calibration file, not to training under a randomization).
 `fine_tuning` says what a calibrated run starts from: the task's adaptive policy
 (`ppo:<task>_adaptive`, observation history included) with the hyperparameters of
 the PPO stage of its recipe (small exploration noise, small steps), or else the
@@ -65,6 +68,10 @@ def randomization_for(calibration: Calibration | str | os.PathLike, width: float
     if latency > 0.0:  # the Qube's measured latency at the centre, the preset's whole-step delays around it
         config["effects"]["action_delay"] = {
             "seconds": {"distribution": "uniform", "low": 0.0, "high": 2.0 * latency}}
+    dead_zone = calibration.actuation.get("voltage_deadzone", 0.0)
+    if dead_zone > 0.0:  # likewise the amplifier's measured dead zone
+        config["effects"]["dead_zone"] = {
+            "voltage": {"distribution": "uniform", "low": 0.0, "high": 2.0 * dead_zone}}
     return config
 
 
