@@ -43,8 +43,8 @@ def test_a_reset_brings_back_an_arm_beyond_the_limit_towards_the_centre_slowly(s
         returned = []
         return_arm = qube.return_arm
 
-        def logged(voltages, led=None):
-            result = return_arm(voltages, led)
+        def logged(voltages, led=None, copy=True):
+            result = return_arm(voltages, led, copy=copy)
             theta, _, dtheta, _ = board.true_state()
             returned.append((theta, dtheta, conventions.ARM_SIGN * voltages[0]))
             return result

@@ -94,7 +94,7 @@ def test_compiled_samples_give_the_board_calls_numbers_bit_for_bit(make, seed):
         stepwise._clear_samples = None             # every sample through the board calls and checks
         clear = []
         after_clear = compiled._after_clear_sample
-        compiled._after_clear_sample = lambda: clear.append(1) or after_clear()
+        compiled._after_clear_sample = lambda copy: clear.append(1) or after_clear(copy)
         outcomes = {}
         for name, qube in (("compiled", compiled), ("stepwise", stepwise)):
             rng = np.random.default_rng(seed)

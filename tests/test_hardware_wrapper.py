@@ -90,6 +90,23 @@ def test_voltages_are_clipped_to_max_voltage():
         assert qube.board.applied_voltage == -4.0
 
 
+@pytest.mark.parametrize("led", [None, [0.0, 1.0, 0.0]])  # the compiled clear sample; the checks one by one
+def test_readings_are_new_arrays_unless_the_buffers_are_asked_for(led):
+    with QubeServo2() as qube:
+        kept = qube.action([5.0], led)
+        counts = kept[1].tolist()
+        for _ in range(25):  # 0.1 s at 5 V: the arm turns
+            later = qube.action([5.0], led)
+            assert all(a is not b for a, b in zip(kept, later, strict=True))
+        assert kept[1].tolist() == counts != later[1].tolist()  # what was returned stays as it was read
+        buffers = qube.action([5.0], led, copy=False)
+        first = buffers[1].tolist()
+        for _ in range(25):
+            again = qube.action([5.0], led, copy=False)
+            assert all(a is b for a, b in zip(buffers, again, strict=True))
+        assert again[1].tolist() != first  # the same arrays now hold the later sample
+
+
 @pytest.mark.parametrize("bad", [math.nan, math.inf, [1.0, 2.0], "one volt", [[1.0]], None,
                                  [math.nan], [-math.inf], [True], (math.nan,)])
 def test_invalid_voltages_write_zero_then_raise(bad):

@@ -569,18 +569,20 @@ class QuanserWrapper:
 
     # -- the control loop ------------------------------------------------------------------
 
-    def action(self, voltages: float | Sequence[float] | np.ndarray,
-               led: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def action(self, voltages: float | Sequence[float] | np.ndarray, led: Sequence[float] | None = None,
+               *, copy: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Wait for the next sample, check safety, apply `voltages` (V) and optionally an LED colour.
 
-        Returns (currents, encoders, others) of that sample as new arrays, in board
-        units and signs. Raises ValueError after writing 0 V, or a `SafetyStopError` after
-        stopping the motor (0 V, amplifier disabled: idle).
+        Returns (currents, encoders, others) of that sample in board units and signs: new arrays,
+        or with `copy` False the wrapper's own reading buffers, which every later sample
+        overwrites (for a loop that reads them before its next action: no arrays made per sample).
+        Raises ValueError after writing 0 V, or a `SafetyStopError` after stopping the motor (0 V,
+        amplifier disabled: idle).
         """
-        return self._act(voltages, led, False)
+        return self._act(voltages, led, False, copy)
 
-    def return_arm(self, voltages: float | Sequence[float] | np.ndarray,
-                   led: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def return_arm(self, voltages: float | Sequence[float] | np.ndarray, led: Sequence[float] | None = None,
+                   *, copy: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """`action`, for bringing back an arm that is beyond `arm_limit` (where `action` stops).
 
         While the arm is beyond the limit, each sample stops the motor with `ArmLimitError`
@@ -591,9 +593,9 @@ class QuanserWrapper:
         braked by the motor's back-EMF, not driven). Within the limit it is `action`. The device's first
         analog output drives the arm encoder's joint.
         """
-        return self._act(voltages, led, True)
+        return self._act(voltages, led, True, copy)
 
-    def _act(self, voltages, led, returning: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _act(self, voltages, led, returning: bool, copy: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         board = self._require_open()
         if self._idle:
             raise RuntimeError("the board is idle: call resume() before action()")
@@ -604,7 +606,7 @@ class QuanserWrapper:
                     voltages, led, self.max_voltage, self._overflows_seen, self._last_counts,
                     self.max_missed_samples, self.max_encoder_speed, self.frequency, self.arm_limit)
                 if outcome is None:
-                    return self._after_clear_sample()
+                    return self._after_clear_sample(copy)
                 if outcome is not False:  # read, not clear: the checks below decide
                     given = outcome
         except self._board_error as error:
@@ -625,7 +627,7 @@ class QuanserWrapper:
                     rgb, self._overflows_seen, self._last_counts, self.max_missed_samples,
                     self.max_encoder_speed, self.frequency, self.arm_limit)
                 if outcome is None:
-                    return self._after_clear_sample()
+                    return self._after_clear_sample(copy)
                 reloaded, overflows = outcome
         except self._board_error as error:
             self._stop(BoardIOError(f"the board could not deliver a sample: {error_text(error)}"), error)
@@ -651,9 +653,15 @@ class QuanserWrapper:
                     f"{self.watchdog_timeout} s), so the board zeroed its outputs; resume() drives again"),
                     error)
             self._stop(BoardIOError(f"the board refused the voltage: {error_text(error)}"), error)
-        return self._currents.copy(), self._encoders.copy(), self._others.copy()
+        return self._readings(copy)
 
-    def _after_clear_sample(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _readings(self, copy: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The last sample's (currents, encoders, others): copies, or the buffers themselves."""
+        if copy:
+            return self._currents.copy(), self._encoders.copy(), self._others.copy()
+        return self._currents, self._encoders, self._others
+
+    def _after_clear_sample(self, copy: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What the checks of `_act` leave after a sample that `ClearSamples` found clear and wrote:
         no sample missed, no flag set, the counts kept for the next glitch check, the arm within
         its limit; `_act`'s readings."""
@@ -661,7 +669,7 @@ class QuanserWrapper:
         self._last_counts = self._encoders.tolist()
         if self.arm_limit is not None and self._arm_at is not None:
             self._return_from, self._held_samples = None, 0
-        return self._currents.copy(), self._encoders.copy(), self._others.copy()
+        return self._readings(copy)
 
     def idle(self) -> None:
         """Stop driving until `resume()`: 0 V, amplifier disabled, watchdog stopped.

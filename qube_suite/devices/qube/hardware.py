@@ -603,8 +603,8 @@ class Physics(BoardClockAndLed, MeasuredState, control.Physics):
     def _sample(self, volts: float, returning: bool = False) -> None:
         qube, led = self.qube, self._led
         act = qube.return_arm if returning else qube.action
-        self.currents, encoders, self.others = act(
-            [conventions.board_voltage(volts)], None if led == self._led_shown else led)
+        self.currents, encoders, self.others = act(  # the last sample's: read before the next one
+            [conventions.board_voltage(volts)], None if led == self._led_shown else led, copy=False)
         self.encoders = encoders
         self._led_shown = led  # written only when it changes: one board call less per sample
         limit = qube.max_voltage
