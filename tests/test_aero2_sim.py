@@ -193,6 +193,21 @@ def test_an_idle_aero_does_not_succeed():
     assert result.successes == [False, False]
 
 
+POLICY = FOLDER / "policies" / "ppo_hover.npz"
+
+
+def test_the_learned_hover_policy_holds_the_yaw_target_at_the_frequency_it_learnt():
+    """PPO (560 k steps at 50 Hz) gives two voltages and hovers where idling does not."""
+    from qube_suite.policies import mlp
+
+    policy = mlp.load(POLICY)
+    assert policy.action_size == 2
+    assert policy.meta["training"]["environment_kwargs"]["control_frequency"] == 50.0
+    result = evaluate(policy, "aero2", "hover", episodes=2, seed=10,
+                      environment_kwargs={"control_frequency": 50.0})
+    assert result.successes == [True, True], result.to_dict()
+
+
 def test_bad_input_is_refused_with_a_clear_error():
     env = _env("hover")
     env.reset()

@@ -221,3 +221,18 @@ def test_eval_cli_reports_a_corrupt_policy_file_in_one_line(tmp_path):
                              str(bad), "--episodes", "1"], capture_output=True, text=True)
     assert result.returncode == 2 and "not a policy file" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+def test_a_policy_of_several_voltages_gives_one_per_motor_and_is_checked():
+    weight = np.array([[1.0, 0.0], [0.0, -2.0]])
+    meta = {"format": 2, "feature_map": "plain", "activation": "tanh", "squash": False, "epsilon": 0.0,
+            "clip": 10.0, "voltage_limit": 5.0, "observation_size": 2, "task": "hover", "algo": "ppo",
+            "action_size": 2}
+    policy = MLPPolicy([weight], [np.zeros(2)], np.zeros(2), np.ones(2), meta)
+    np.testing.assert_allclose(policy(np.array([1.5, 4.0])), [1.5, -5.0])  # the second clipped
+    for change, message in (({"action_size": 1}, "gives 2 outputs, not one voltage"),
+                            ({"action_size": 3}, "gives 2 outputs, not 3 voltages"),
+                            ({"action_size": 0}, "action_size must be a positive integer"),
+                            ({"history": 2}, "a policy with history gives one voltage")):
+        with pytest.raises(ValueError, match=message):
+            MLPPolicy([weight], [np.zeros(2)], np.zeros(2), np.ones(2), {**meta, **change})

@@ -212,6 +212,12 @@ def _check(weights: list[np.ndarray], biases: list[np.ndarray], mean: np.ndarray
         raise ValueError("format 1 has no history; a policy with history is format 2")
     if not (isinstance(history, int) and history >= 0):
         raise ValueError(f"history must be an integer >= 0, got {history!r}")
+    outputs = meta.get("action_size", 1)
+    if not (isinstance(outputs, int) and not isinstance(outputs, bool) and outputs >= 1):
+        raise ValueError(f"action_size must be a positive integer, got {outputs!r}")
+    if outputs > 1 and history:
+        raise ValueError("a policy with history gives one voltage; this one has action_size "
+                         f"{outputs}")
     if meta["feature_map"] not in FEATURE_MAPS:
         raise ValueError(f"unknown feature map {meta['feature_map']!r}; known: {', '.join(FEATURE_MAPS)}")
     if meta["activation"] not in ACTIVATIONS:
@@ -234,12 +240,6 @@ def _check(weights: list[np.ndarray], biases: list[np.ndarray], mean: np.ndarray
             raise ValueError(f"layer {i}: weight {weight.shape} and bias {bias.shape} do not fit "
                              f"{inputs} inputs{layout}")
         inputs = weight.shape[0]
-    outputs = meta.get("action_size", 1)
-    if not (isinstance(outputs, int) and not isinstance(outputs, bool) and outputs >= 1):
-        raise ValueError(f"action_size must be a positive integer, got {outputs!r}")
-    if outputs > 1 and history:
-        raise ValueError("a policy with history gives one voltage; this one has action_size "
-                         f"{outputs}")
     if inputs != outputs:
         raise ValueError(f"the last layer gives {inputs} outputs, not "
                          f"{'one voltage' if outputs == 1 else f'{outputs} voltages'}")

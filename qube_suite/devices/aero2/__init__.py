@@ -3,7 +3,7 @@
 Files, in the order a new device needs them: `parameters.py` (the table, by long name, with
 sources), `conventions.py` (state, action, signs, counts to SI), `model.xml` and `scene.xml`
 (the MJCF), `simulation.py` (the MuJoCo domain), `tasks.py` (`SUITE`), `hardware.py` (the board
-domain), `controllers.py` (the classical baselines), then this declaration.
+domain), `controllers.py` (the LQR), `policies/` (the learned hover policy), then this declaration.
 """
 
 from qube_suite.devices import Device
