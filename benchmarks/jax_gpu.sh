@@ -14,13 +14,4 @@ timeout 160 python3 benchmarks/jax_backend.py train --task swingup --randomizati
     --num-evals 8 --out "$out/nominal" --json "$out/results.jsonl"
 timeout 260 python3 benchmarks/jax_backend.py train --task swingup --randomization sim2real \
     --steps 200000000 --num-evals 10 --out "$out/sim2real" --json "$out/results.jsonl"
-python3 - "$out" <<'PY'
-import pathlib, shutil, sys, zipfile
-out = pathlib.Path(sys.argv[1])
-with zipfile.ZipFile(out / "policies.zip", "w") as archive:
-    for path in sorted(out.glob("*/**/*")):
-        if path.is_file():
-            archive.write(path, path.relative_to(out))
-for run in ("nominal", "sim2real"):
-    shutil.rmtree(out / run, ignore_errors=True)
-PY
+python3 benchmarks/pack_runs.py "$out" nominal sim2real

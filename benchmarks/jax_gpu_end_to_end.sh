@@ -19,13 +19,4 @@ timeout 45 python3 benchmarks/jax_backend.py throughput --presets sim2real_frict
 timeout 120 python3 benchmarks/jax_backend.py train --task swingup --randomization sim2real_frictionless \
     --steps 60000000 --set num_updates_per_batch=4 --num-evals 7 --out "$out/fast" \
     --json "$out/results.jsonl"
-python3 - "$out" <<'PY'
-import pathlib, shutil, sys, zipfile
-out = pathlib.Path(sys.argv[1])
-with zipfile.ZipFile(out / "policies.zip", "w") as archive:
-    for path in sorted(out.glob("*/**/*")):
-        if path.is_file():
-            archive.write(path, path.relative_to(out))
-for run in ("recipe", "fast"):
-    shutil.rmtree(out / run, ignore_errors=True)
-PY
+python3 benchmarks/pack_runs.py "$out" recipe fast

@@ -148,3 +148,39 @@ class BoardClockAndLed:
     def timestep(self) -> float:
         """One sample (s)."""
         return 1.0 / self._frequency
+
+
+class BoardClosing:
+    """Closing a board-backed physics for good, and stopping its motors after a failure, for a
+    device whose domain keeps no other resource. Expects `qube` (the board's wrapper,
+    `qube_suite.hardware.quanser.QuanserWrapper`), `_closed` and `_twin` (its digital twin, a
+    MuJoCo physics, or None) set by the physics."""
+
+    def free(self) -> None:
+        """Stop the motors and close the board (dm_control's `close()` calls it)."""
+        self.close()
+
+    def close(self) -> None:
+        """Stop the motors and close the board, for good: a later `reset` raises."""
+        self._closed = True
+        try:
+            self.qube.close()
+        finally:
+            if self._twin is not None:
+                self._twin.close()
+                self._twin = None
+
+    @property
+    def closed(self) -> bool:
+        """Whether `close()` was called."""
+        return self._closed
+
+    def _stop(self) -> None:
+        """Leave the motors stopped after a failure: idle (0 V, amplifiers off), or closed if idling
+        fails."""
+        if self.qube.is_open and not self.qube.is_idle:
+            try:
+                self.qube.idle()
+            except BaseException:
+                self.qube.close()
+                raise

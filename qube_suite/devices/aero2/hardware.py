@@ -53,7 +53,7 @@ from qube_suite.devices.aero2 import conventions, substitute
 from qube_suite.devices.qube.parameters import values_of
 from qube_suite.devices.qube.simulation import check_control_frequency
 from qube_suite.domains.effects import Effects
-from qube_suite.domains.interface import BoardClockAndLed
+from qube_suite.domains.interface import BoardClockAndLed, BoardClosing
 from qube_suite.hardware.errors import HardwareError
 from qube_suite.hardware.quanser import SIMULATED, Device, QuanserWrapper
 
@@ -130,7 +130,7 @@ class ResetController:
         return np.array([lift, turn])
 
 
-class Physics(BoardClockAndLed, control.Physics):
+class Physics(BoardClockAndLed, BoardClosing, control.Physics):
     """An Aero 2 on a board, through the Aero's domain interface (`tasks.Aero2Physics`).
 
     Args:
@@ -355,36 +355,7 @@ class Physics(BoardClockAndLed, control.Physics):
         """The digital twin's `MjModel` (what `drawable()` draws)."""
         return self.drawable().model
 
-    def free(self) -> None:
-        """Stop both motors and close the board (dm_control's `close()` calls it)."""
-        self.close()
-
-    def close(self) -> None:
-        """Stop both motors and close the board, for good: a later `reset` raises."""
-        self._closed = True
-        try:
-            self.qube.close()
-        finally:
-            if self._twin is not None:
-                self._twin.close()
-                self._twin = None
-
-    @property
-    def closed(self) -> bool:
-        """Whether `close()` was called."""
-        return self._closed
-
     # -- helpers ----------------------------------------------------------------------------
-
-    def _stop(self) -> None:
-        """Leave both motors stopped after a failure: idle (0 V, amplifiers off), or closed if idling
-        fails."""
-        if self.qube.is_open and not self.qube.is_idle:
-            try:
-                self.qube.idle()
-            except BaseException:
-                self.qube.close()
-                raise
 
     def _sample(self, volts: np.ndarray) -> None:
         self.currents, self.encoders, self.others = self.qube.action([float(volts[0]), float(volts[1])],

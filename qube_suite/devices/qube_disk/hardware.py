@@ -27,7 +27,7 @@ from qube_suite.devices.qube.simulation import check_control_frequency
 from qube_suite.devices.qube_disk import conventions
 from qube_suite.devices.qube_disk.substitute import plant_overrides
 from qube_suite.domains.effects import Effects
-from qube_suite.domains.interface import BoardClockAndLed
+from qube_suite.domains.interface import BoardClockAndLed, BoardClosing
 from qube_suite.hardware import conventions as board_conventions
 from qube_suite.hardware.errors import HardwareError
 from qube_suite.hardware.quanser import DEVICES, SIMULATED, QuanserWrapper
@@ -56,7 +56,7 @@ class ResetError(HardwareError):
     """The disk did not come to rest within the reset timeout; the motor is stopped."""
 
 
-class Physics(BoardClockAndLed, control.Physics):
+class Physics(BoardClockAndLed, BoardClosing, control.Physics):
     """A disk-loaded Qube on a board, through the disk's domain interface (`tasks.DiskPhysics`).
 
     Args:
@@ -232,35 +232,7 @@ class Physics(BoardClockAndLed, control.Physics):
         physics' model (element names, cameras)."""
         return self.drawable().model
 
-    def free(self) -> None:
-        """Stop the motor and close the board (dm_control's `close()` calls it)."""
-        self.close()
-
-    def close(self) -> None:
-        """Stop the motor and close the board, for good: a later `reset` raises."""
-        self._closed = True
-        try:
-            self.qube.close()
-        finally:
-            if self._twin is not None:
-                self._twin.close()
-                self._twin = None
-
-    @property
-    def closed(self) -> bool:
-        """Whether `close()` was called."""
-        return self._closed
-
     # -- helpers ----------------------------------------------------------------------------
-
-    def _stop(self) -> None:
-        """Leave the motor stopped after a failure: idle (0 V, amplifier off), or closed if idling fails."""
-        if self.qube.is_open and not self.qube.is_idle:
-            try:
-                self.qube.idle()
-            except BaseException:
-                self.qube.close()
-                raise
 
     def _sample(self, volts: float) -> None:
         self.currents, self.encoders, self.others = self.qube.action([board_conventions.board_voltage(volts)],
