@@ -34,13 +34,12 @@ J w' = kt (V - km w) / Rm - kd w, with time constant J / (kd + kt km / Rm) = 0.1
 
 from __future__ import annotations
 
-import math
-import numbers
 import types
 from collections.abc import Mapping
 from typing import Any
 
-from qube_suite.devices.qube.parameters import Parameter
+from qube_suite import parameter_tables
+from qube_suite.parameter_tables import Parameter
 
 _TABLE = (
     # The body (beam, thruster shrouds, yoke) about the pivot.
@@ -105,21 +104,5 @@ def gravity_stiffness(values: Mapping[str, float]) -> float:
 
 
 def resolve(overrides: Mapping[str, Any] | None = None) -> dict[str, float]:
-    """Nominal parameters updated by `overrides` (by long name).
-
-    Raises ValueError for an unknown name (listing the valid ones), a non-number, or a value that is
-    not finite, negative, or zero where zero is impossible.
-    """
-    values = dict(NOMINAL)
-    for name, value in (overrides or {}).items():
-        if name not in PARAMETERS:
-            raise ValueError(f"unknown parameter {name!r}; valid names: {', '.join(PARAMETERS)}")
-        if isinstance(value, bool) or not isinstance(value, numbers.Real):
-            raise ValueError(f"parameter {name!r} must be a number, got {value!r}")
-        value = float(value)
-        zero_allowed = name in _MAY_BE_ZERO
-        if not math.isfinite(value) or value < 0.0 or (value == 0.0 and not zero_allowed):
-            raise ValueError(f"parameter {name!r} must be finite and {'>= 0' if zero_allowed else '> 0'}, "
-                             f"got {value}")
-        values[name] = value
-    return values
+    """Nominal parameters updated by `overrides` (by long name); see `qube_suite.parameter_tables.resolve`."""
+    return parameter_tables.resolve(PARAMETERS, _MAY_BE_ZERO, overrides)

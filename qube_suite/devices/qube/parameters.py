@@ -23,7 +23,6 @@ arm. MuJoCo represents them natively (joint `frictionloss` and `stiffness`).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import numbers
 import os
@@ -32,18 +31,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from qube_suite import files
-
-
-@dataclasses.dataclass(frozen=True)
-class Parameter:
-    """One named physical parameter."""
-
-    name: str
-    symbol: str
-    nominal: float
-    unit: str
-    description: str
-
+from qube_suite.parameter_tables import Parameter
 
 _TABLE = (
     Parameter("motor_resistance", "Rm", 8.4, "ohm", "motor terminal resistance"),

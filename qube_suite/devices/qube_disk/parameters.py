@@ -17,28 +17,28 @@ motor's nominal values, shared with the pendulum); the module rows are new here.
 
 from __future__ import annotations
 
-import math
-import numbers
 import types
 from collections.abc import Mapping
 from typing import Any
 
+from qube_suite import parameter_tables
 from qube_suite.devices.qube import parameters as shared
+from qube_suite.parameter_tables import Parameter
 
 MOTOR_NAMES = ("motor_resistance", "motor_torque_constant", "motor_back_emf", "rotor_inertia",
                "motor_inductance")
 """The motor's parameters: the Qube's, read from `qube_suite.devices.qube.parameters`."""
 
 _MODULE = (
-    shared.Parameter("disk_mass", "md", 0.053, "kg", "inertia disk mass"),
-    shared.Parameter("disk_radius", "rd", 0.0248, "m", "inertia disk radius"),
-    shared.Parameter("hub_inertia", "Jh", 0.6e-6, "kg m^2", "module attachment hub moment of inertia"),
-    shared.Parameter("disk_damping", "Dd", 5.0e-6, "N m s/rad", "viscous damping of the motor shaft"),
-    shared.Parameter("disk_friction", "Fd", 0.0, "N m", "Coulomb friction torque on the motor shaft "
+    Parameter("disk_mass", "md", 0.053, "kg", "inertia disk mass"),
+    Parameter("disk_radius", "rd", 0.0248, "m", "inertia disk radius"),
+    Parameter("hub_inertia", "Jh", 0.6e-6, "kg m^2", "module attachment hub moment of inertia"),
+    Parameter("disk_damping", "Dd", 5.0e-6, "N m s/rad", "viscous damping of the motor shaft"),
+    Parameter("disk_friction", "Fd", 0.0, "N m", "Coulomb friction torque on the motor shaft "
                      "(accuracy option)"),
 )
 
-PARAMETERS: types.MappingProxyType[str, shared.Parameter] = types.MappingProxyType(
+PARAMETERS: types.MappingProxyType[str, Parameter] = types.MappingProxyType(
     {**{name: shared.PARAMETERS[name] for name in MOTOR_NAMES}, **{p.name: p for p in _MODULE}})
 """Every parameter of the disk-loaded Qube by long name: the motor's, then the module's."""
 
@@ -61,21 +61,5 @@ def shaft_inertia(values: Mapping[str, float]) -> float:
 
 
 def resolve(overrides: Mapping[str, Any] | None = None) -> dict[str, float]:
-    """Nominal parameters updated by `overrides` (by long name).
-
-    Raises ValueError for an unknown name (listing the valid ones), a non-number, or a value that is
-    not finite, negative, or zero where zero is impossible.
-    """
-    values = dict(NOMINAL)
-    for name, value in (overrides or {}).items():
-        if name not in PARAMETERS:
-            raise ValueError(f"unknown parameter {name!r}; valid names: {', '.join(PARAMETERS)}")
-        if isinstance(value, bool) or not isinstance(value, numbers.Real):
-            raise ValueError(f"parameter {name!r} must be a number, got {value!r}")
-        value = float(value)
-        zero_allowed = name in _MAY_BE_ZERO
-        if not math.isfinite(value) or value < 0.0 or (value == 0.0 and not zero_allowed):
-            raise ValueError(f"parameter {name!r} must be finite and {'>= 0' if zero_allowed else '> 0'}, "
-                             f"got {value}")
-        values[name] = value
-    return values
+    """Nominal parameters updated by `overrides` (by long name); see `qube_suite.parameter_tables.resolve`."""
+    return parameter_tables.resolve(PARAMETERS, _MAY_BE_ZERO, overrides)
