@@ -285,3 +285,13 @@ def test_a_pendulum_recording_is_no_disk_recording(tmp_path):
     path = experiment.run(tmp_path / "pendulum.jsonl", "qube_hardware", seconds=20.0)
     with pytest.raises(ValueError, match="no encoder column raw_encoder_disk"):
         calibration.calibrate_recording(path)
+
+
+@pytest.mark.parametrize("bad", [np.array([np.nan]), np.array([1.0, 2.0]), "one volt"])
+def test_a_bad_action_on_the_simulated_disk_is_a_value_error_and_moves_nothing(bad):
+    env = suite.load("qube_disk", "position", task_kwargs={"random": 0})
+    env.reset()
+    before = env.physics.qube_state().copy()
+    with pytest.raises(ValueError):
+        env.step(bad)
+    np.testing.assert_array_equal(env.physics.qube_state(), before)

@@ -184,3 +184,28 @@ class BoardClosing:
             except BaseException:
                 self.qube.close()
                 raise
+
+
+class SimulationLifecycle:
+    """What every simulated physics (a `dm_control.mujoco.Physics`) has alike: time counted from the
+    episode's start, no motor to stop (time stands still between steps), and closing for good."""
+
+    def time(self) -> float:
+        """Simulated time since the episode started (s)."""
+        return self._data_ptr.time
+
+    def end_episode(self) -> None:
+        """Nothing to stop in simulation."""
+
+    def stop_motor(self) -> None:
+        """Nothing to stop in simulation: time stands still between steps."""
+
+    def close(self) -> None:
+        """Free MuJoCo's data and any rendering context; the physics cannot be used afterwards."""
+        if hasattr(self, "_data"):
+            self.free()
+
+    @property
+    def closed(self) -> bool:
+        """Whether `close()` freed the simulation: resets, rendering and pickling raise then."""
+        return not hasattr(self, "_data")

@@ -39,6 +39,7 @@ from qube_suite.devices.aero2.conventions import (
 from qube_suite.devices.qube import parameters as shared_parameters
 from qube_suite.devices.qube.simulation import check_control_frequency, physics_timestep
 from qube_suite.domains.effects import Effects
+from qube_suite.domains.interface import SimulationLifecycle
 
 FOLDER = pathlib.Path(__file__).resolve().parent
 MODEL_PATH = FOLDER / "model.xml"
@@ -86,7 +87,7 @@ def mass_distribution(values: Mapping[str, float], configuration: str) -> dict[s
             "yoke_inertia": yoke_inertia}
 
 
-class Physics(dm_mujoco.Physics):
+class Physics(SimulationLifecycle, dm_mujoco.Physics):
     """MuJoCo physics of the Aero 2 with accessors that read like it.
 
     The Aero's domain interface (`Aero2Physics` in `qube_suite.devices.aero2.tasks`): `pitch`, `yaw`,
@@ -264,26 +265,6 @@ class Physics(dm_mujoco.Physics):
             self._data_ptr.time = time + nstep * self._model_ptr.opt.timestep
             self.physics_error = (f"the simulation diverged at t = {self._data_ptr.time:.3f} s "
                                   f"(state {state}); the step was undone")
-
-    def time(self) -> float:
-        """Simulated time since the episode started (s)."""
-        return self._data_ptr.time
-
-    def end_episode(self) -> None:
-        """Nothing to stop in simulation."""
-
-    def stop_motor(self) -> None:
-        """Nothing to stop in simulation: time stands still between steps."""
-
-    def close(self) -> None:
-        """Free MuJoCo's data; the physics cannot be used afterwards."""
-        if hasattr(self, "_data"):
-            self.free()
-
-    @property
-    def closed(self) -> bool:
-        """Whether `close()` freed the simulation."""
-        return not hasattr(self, "_data")
 
     @contextlib.contextmanager
     def reset_context(self):

@@ -26,7 +26,7 @@ from qube_suite.angles import wrap_angle
 from qube_suite.arguments import is_number, keywords_of
 from qube_suite.devices.qube import parameters as params
 from qube_suite.domains.effects import Effects
-from qube_suite.domains.interface import MeasuredState
+from qube_suite.domains.interface import MeasuredState, SimulationLifecycle
 
 MODEL_PATH = pathlib.Path(__file__).resolve().parent / "model.xml"
 """The Qube alone: bodies, joints, actuator, keyframes `hanging` and `upright`."""
@@ -50,7 +50,7 @@ diverged state stays (huge, inf or NaN) and fails this check."""
 REWARD_MATERIALS = ("self", "effector", "target")
 """The materials dm_control's reward visualisation colours (`Physics.show_reward`; the pendulum is "self")."""
 
-class Physics(MeasuredState, dm_mujoco.Physics):
+class Physics(MeasuredState, SimulationLifecycle, dm_mujoco.Physics):
     """MuJoCo physics of the Qube with accessors that read like the Qube.
 
     Implements `qube_suite.domains.interface.QubePhysics`. The Qube's state is
@@ -265,16 +265,6 @@ class Physics(MeasuredState, dm_mujoco.Physics):
         self.draw_led()
         return self
 
-    def close(self) -> None:
-        """Free MuJoCo's data and any rendering context; the physics cannot be used afterwards."""
-        if hasattr(self, "_data"):
-            self.free()
-
-    @property
-    def closed(self) -> bool:
-        """Whether `close()` freed the simulation: resets, rendering and pickling raise then."""
-        return not hasattr(self, "_data")
-
     def render(self, *args, **kwargs):
         """dm_control's `Physics.render`, showing the current LED colour. RuntimeError after `close()`."""
         if self.closed:
@@ -303,16 +293,6 @@ class Physics(MeasuredState, dm_mujoco.Physics):
             return
         self._exact = exact
         self._measured = self._effects.measure(exact)
-
-    def time(self) -> float:
-        """Simulated time since the episode started (s)."""
-        return self._data_ptr.time
-
-    def end_episode(self) -> None:
-        """Nothing to stop in simulation."""
-
-    def stop_motor(self) -> None:
-        """Nothing to stop in simulation: time stands still between steps."""
 
     def forward(self) -> None:
         """Recompute derived quantities after the state was changed directly, then measure."""

@@ -22,6 +22,7 @@ from qube_suite.devices.qube.simulation import check_control_frequency, physics_
 from qube_suite.devices.qube_disk import parameters as disk_parameters
 from qube_suite.devices.qube_disk.conventions import MAX_SPEED, STATE_NAMES
 from qube_suite.domains.effects import Effects
+from qube_suite.domains.interface import SimulationLifecycle
 
 FOLDER = pathlib.Path(__file__).resolve().parent
 MODEL_PATH = FOLDER / "model.xml"
@@ -31,7 +32,7 @@ SCENE_PATH = FOLDER / "scene.xml"
 """The disk-loaded Qube on a bench with lights and cameras."""
 
 
-class Physics(dm_mujoco.Physics):
+class Physics(SimulationLifecycle, dm_mujoco.Physics):
     """MuJoCo physics of the disk-loaded Qube with accessors that read like it.
 
     The domain interface of the disk (`DiskPhysics` in `qube_suite.devices.qube_disk.tasks`):
@@ -149,23 +150,6 @@ class Physics(dm_mujoco.Physics):
             self._data_ptr.time = time + nstep * self._model_ptr.opt.timestep
             self.physics_error = (f"the simulation diverged at t = {self._data_ptr.time:.3f} s "
                                   f"(speed {speed} rad/s); the step was undone")
-
-    def time(self) -> float:
-        """Simulated time since the episode started (s)."""
-        return self._data_ptr.time
-
-    def end_episode(self) -> None:
-        """Nothing to stop in simulation."""
-
-    def close(self) -> None:
-        """Free MuJoCo's data; the physics cannot be used afterwards."""
-        if hasattr(self, "_data"):
-            self.free()
-
-    @property
-    def closed(self) -> bool:
-        """Whether `close()` freed the simulation."""
-        return not hasattr(self, "_data")
 
     @contextlib.contextmanager
     def reset_context(self):
