@@ -150,11 +150,23 @@ class BoardClockAndLed:
         return 1.0 / self._frequency
 
 
-class BoardClosing:
-    """Closing a board-backed physics for good, and stopping its motors after a failure, for a
-    device whose domain keeps no other resource. Expects `qube` (the board's wrapper,
-    `qube_suite.hardware.quanser.QuanserWrapper`), `_closed` and `_twin` (its digital twin, a
-    MuJoCo physics, or None) set by the physics."""
+class BoardLifecycle:
+    """Stepping a board-backed physics sample by sample, stopping its motors after a failure and
+    closing it for good, for a device whose domain keeps no other resource. Expects `qube` (the
+    board's wrapper, `qube_suite.hardware.quanser.QuanserWrapper`), `_effects`
+    (`qube_suite.domains.effects.Effects`), `_voltage` (the commanded voltage, V), `_sample(volts)`
+    (one sample writing `volts`), `_closed` and `_twin` (its digital twin, a MuJoCo physics, or
+    None) set by the physics."""
+
+    def step(self, nstep: int = 1) -> None:
+        """Wait for the next `nstep` samples, writing the commanded voltage at each."""
+        volts = self._effects.actuate(self._voltage)
+        try:
+            for _ in range(nstep):
+                self._sample(volts)
+        except BaseException:
+            self._stop()
+            raise
 
     def free(self) -> None:
         """Stop the motors and close the board (dm_control's `close()` calls it)."""

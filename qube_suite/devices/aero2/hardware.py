@@ -53,7 +53,7 @@ from qube_suite.devices.aero2 import conventions, substitute
 from qube_suite.devices.qube.parameters import values_of
 from qube_suite.devices.qube.simulation import check_control_frequency
 from qube_suite.domains.effects import Effects
-from qube_suite.domains.interface import BoardClockAndLed, BoardClosing
+from qube_suite.domains.interface import BoardClockAndLed, BoardLifecycle
 from qube_suite.hardware.errors import HardwareError
 from qube_suite.hardware.quanser import SIMULATED, Device, QuanserWrapper
 
@@ -130,7 +130,7 @@ class ResetController:
         return np.array([lift, turn])
 
 
-class Physics(BoardClockAndLed, BoardClosing, control.Physics):
+class Physics(BoardClockAndLed, BoardLifecycle, control.Physics):
     """An Aero 2 on a board, through the Aero's domain interface (`tasks.Aero2Physics`).
 
     Args:
@@ -246,16 +246,6 @@ class Physics(BoardClockAndLed, BoardClosing, control.Physics):
                 "tachometer_front": float(self.others[0]), "tachometer_back": float(self.others[1]),
                 "tachometer_pitch": float(self.others[2]), "tachometer_yaw": float(self.others[3]),
                 "missed_samples": self.qube.missed_samples}
-
-    def step(self, nstep: int = 1) -> None:
-        """Wait for the next `nstep` samples, writing the commanded voltages at each."""
-        volts = self._effects.actuate(self._voltage)
-        try:
-            for _ in range(nstep):
-                self._sample(volts)
-        except BaseException:
-            self._stop()
-            raise
 
     def set_actuator_model(self, actuator_model) -> None:
         """Write `actuator_model(volts)` (arrays of shape (2,)) to the board instead of the commanded

@@ -27,7 +27,7 @@ from qube_suite.devices.qube.simulation import check_control_frequency
 from qube_suite.devices.qube_disk import conventions
 from qube_suite.devices.qube_disk.substitute import plant_overrides
 from qube_suite.domains.effects import Effects
-from qube_suite.domains.interface import BoardClockAndLed, BoardClosing
+from qube_suite.domains.interface import BoardClockAndLed, BoardLifecycle
 from qube_suite.hardware import conventions as board_conventions
 from qube_suite.hardware.errors import HardwareError
 from qube_suite.hardware.quanser import DEVICES, SIMULATED, QuanserWrapper
@@ -56,7 +56,7 @@ class ResetError(HardwareError):
     """The disk did not come to rest within the reset timeout; the motor is stopped."""
 
 
-class Physics(BoardClockAndLed, BoardClosing, control.Physics):
+class Physics(BoardClockAndLed, BoardLifecycle, control.Physics):
     """A disk-loaded Qube on a board, through the disk's domain interface (`tasks.DiskPhysics`).
 
     Args:
@@ -147,16 +147,6 @@ class Physics(BoardClockAndLed, BoardClosing, control.Physics):
         """The last sample in board units: motor current (A), encoder counts, tachometer (counts/s)."""
         return {"current": float(self.currents[0]), "encoder_disk": int(self.encoders[0]),
                 "tachometer": float(self.others[0]), "missed_samples": self.qube.missed_samples}
-
-    def step(self, nstep: int = 1) -> None:
-        """Wait for the next `nstep` samples, writing the commanded voltage at each."""
-        volts = self._effects.actuate(self._voltage)
-        try:
-            for _ in range(nstep):
-                self._sample(volts)
-        except BaseException:
-            self._stop()
-            raise
 
     def set_actuator_model(self, actuator_model) -> None:
         """Write `actuator_model(volts)` to the board instead of the commanded voltage; None: as
