@@ -208,6 +208,18 @@ def test_the_learned_hover_policy_holds_the_yaw_target_at_the_frequency_it_learn
     assert result.successes == [True, True], result.to_dict()
 
 
+def test_the_learned_pitch_policy_follows_its_steps_on_the_1dof_aero():
+    """PPO (480 k steps at 50 Hz, yaw locked) follows the pitch schedule."""
+    from qube_suite.policies import mlp
+
+    policy = mlp.load(FOLDER / "policies" / "ppo_pitch.npz")
+    assert policy.meta["training"]["domain_kwargs"] == {"configuration": "pitch_only"}
+    result = evaluate(policy, "aero2", "pitch", episodes=2, seed=10,
+                      domain_kwargs={"configuration": "pitch_only"},
+                      environment_kwargs={"control_frequency": 50.0})
+    assert result.successes == [True, True], result.to_dict()
+
+
 def test_bad_input_is_refused_with_a_clear_error():
     env = _env("hover")
     env.reset()
