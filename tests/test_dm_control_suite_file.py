@@ -47,7 +47,10 @@ def test_suite_test_is_collected_and_visualize_reward_passes(suite_test):
 
 @pytest.mark.slow
 def test_every_check_of_suite_test_passes_but_the_action_range(suite_test):
-    count, result = run(suite_test, lambda name: True)
+    # the Aero's hover has one constant observation element by design; tests/test_dm_control_suite.py
+    # checks all its other elements (CONSTANT_BY_DESIGN)
+    count, result = run(suite_test, lambda name: not ("constant_elements" in name and "task='hover" in name
+                                                      and "domain='aero2" in name))
     failed = {test.id().split(".")[-1].split("(")[0].strip().rstrip("0123456789") for test, _ in
               result.failures + result.errors}
     assert count > 100 and failed <= set(BY_DESIGN), failed
