@@ -172,6 +172,11 @@ class BoardLifecycle:
         """Stop the motors and close the board (dm_control's `close()` calls it)."""
         self.close()
 
+    def end_episode(self) -> None:
+        """Stop driving until the next reset: the motors at 0 V, the amplifiers disabled."""
+        if self.qube.is_open and not self.qube.is_idle:
+            self.qube.idle()
+
     def close(self) -> None:
         """Stop the motors and close the board, for good: a later `reset` raises."""
         self._closed = True

@@ -322,11 +322,6 @@ class Physics(BoardClockAndLed, BoardLifecycle, control.Physics):
         self._effects.restart_actuation(np.zeros(2))
         self._episode_start = self._samples
 
-    def end_episode(self) -> None:
-        """Stop driving until the next reset: both motors at 0 V, both amplifiers disabled."""
-        if self.qube.is_open and not self.qube.is_idle:
-            self.qube.idle()
-
     def drawable(self):
         """The simulated Aero put in the measured state with the LED's colour: a digital twin."""
         if self._twin is None:

@@ -201,11 +201,6 @@ class Physics(BoardClockAndLed, BoardLifecycle, control.Physics):
         self._effects.restart_actuation()
         self._episode_start = self._samples
 
-    def end_episode(self) -> None:
-        """Stop driving until the next reset: 0 V, amplifier disabled."""
-        if self.qube.is_open and not self.qube.is_idle:
-            self.qube.idle()
-
     def drawable(self):
         """The simulated disk put in the measured state with the LED's colour: a digital twin."""
         if self._twin is None:
