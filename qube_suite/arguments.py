@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import inspect
 import numbers
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 
 import numpy as np
 
@@ -51,3 +51,13 @@ def check_keywords(given: Iterable[str], valid: Iterable[str], what: str) -> Non
         names = "an unexpected keyword argument" if len(unknown) == 1 else "unexpected keyword arguments"
         raise UnknownKeywordError(f"{what} got {names} {', '.join(map(repr, unknown))}; "
                                   f"valid: {', '.join(valid)}")
+
+
+def checked_controller(controllers: Mapping[str, type], name: str, kwargs: Iterable[str]) -> type:
+    """The class called `name` in a device's `controllers` (name -> class), once `name` and the keyword
+    arguments `kwargs` are known to it; ValueError listing the valid ones otherwise."""
+    if name not in controllers:
+        raise ValueError(f"unknown controller {name!r}; valid controllers: {', '.join(controllers)}")
+    cls = controllers[name]
+    check_keywords(kwargs, keywords_of(cls), f"keyword arguments of controller {name!r}")
+    return cls

@@ -33,7 +33,7 @@ from typing import Any, ClassVar
 import numpy as np
 import scipy.linalg
 
-from qube_suite.arguments import check_keywords, keywords_of
+from qube_suite.arguments import checked_controller
 from qube_suite.devices.aero2 import parameters as aero_parameters
 from qube_suite.devices.aero2.conventions import RECOMMENDED_VOLTAGE, check_configuration
 from qube_suite.policies.mlp import flat_values
@@ -182,10 +182,7 @@ CONTROLLERS: dict[str, type[AeroLQR]] = {AeroLQR.name: AeroLQR}
 def make(name: str, **kwargs) -> AeroLQR:
     """The controller called `name`, built with `kwargs`. Raises ValueError for an unknown name or keyword
     (listing the valid ones)."""
-    if name not in CONTROLLERS:
-        raise ValueError(f"unknown controller {name!r}; valid controllers: {', '.join(CONTROLLERS)}")
-    check_keywords(kwargs, keywords_of(CONTROLLERS[name]), f"keyword arguments of controller {name!r}")
-    return CONTROLLERS[name](**kwargs)
+    return checked_controller(CONTROLLERS, name, kwargs)(**kwargs)
 
 
 def for_environment(name: str, environment, **kwargs) -> AeroLQR:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from qube_suite.arguments import check_keywords, is_number, keywords_of
+from qube_suite.arguments import checked_controller, is_number, keywords_of
 from qube_suite.capabilities import HasDesignParameters
 from qube_suite.devices.qube.controllers.base import Controller
 from qube_suite.devices.qube.controllers.dampen import DampenController
@@ -37,10 +37,7 @@ def make(name: str, **kwargs) -> Controller:
     Raises ValueError for an unknown name or keyword (listing the valid ones), a
     control frequency outside [10, 2000] Hz or a voltage limit that is not positive.
     """
-    if name not in CONTROLLERS:
-        raise ValueError(f"unknown controller {name!r}; valid controllers: {', '.join(CONTROLLERS)}")
-    cls = CONTROLLERS[name]
-    check_keywords(kwargs, keywords_of(cls), f"keyword arguments of controller {name!r}")
+    cls = checked_controller(CONTROLLERS, name, kwargs)
     if "control_frequency" in kwargs:
         check_control_frequency(kwargs["control_frequency"])
     limit = kwargs.get("voltage_limit", 1.0)
