@@ -27,7 +27,7 @@ ESTIMATION_TIME = 0.1
 ESTIMATION_ITERATIONS = 2
 """Gauss-Newton iterations of that estimate."""
 THROUGH_HORIZON_ITERATIONS = 4
-"""Gauss-Newton iterations of a start fitted through the horizon too (longer, upright unstable)."""
+"""Gauss-Newton iterations of a start refitted through the horizon too (from the past's estimate)."""
 START_SPACING = 0.1
 """Time between the starts of successive rollouts (s)."""
 
@@ -75,9 +75,10 @@ def predict(measurements: Measurements, parameters: Mapping[str, float], samples
     itself (which see half its window, 5 samples, past the start): the
     metric of `../shared/real_qube/README.md`, independent of the model.
     `start_perturbation`: [theta, alpha, theta', alpha'] added to every estimated start state before
-    its rollout (how much a start's error alone moves a prediction). `fit_through_horizon`: fit each
-    start state to the recorded angles of the horizon too, not a prediction but a diagnostic (it sees
-    the future): the error left with the start that suits the model best is the model's own.
+    its rollout (how much a start's error alone moves a prediction). `fit_through_horizon`: refit
+    each estimate to the recorded angles of the horizon too (where that fits the whole window
+    better), not a prediction but a diagnostic that sees the future: the error left with the start
+    that suits the model best is the model's own.
     """
     from qube_suite.calibration.fit import delayed_voltage
 
@@ -105,10 +106,9 @@ def predict(measurements: Measurements, parameters: Mapping[str, float], samples
         if smoothed_start:
             state = guess
         else:
-            fitted, iterations = ((total, THROUGH_HORIZON_ITERATIONS) if fit_through_horizon
-                                  else (past, ESTIMATION_ITERATIONS))
-            state = simulator.fit_initial_state(guess, voltages[:, :fitted], recorded[:, :fitted + 1],
-                                                iterations)
+            state = simulator.fit_initial_state(guess, voltages[:, :past], recorded[:, :past + 1])
+        if fit_through_horizon:
+            state = simulator.refit_through(state, voltages, recorded)
         if start_perturbation is None:
             predicted = simulator.rollout(state, voltages)[:, past:]
         else:
@@ -153,6 +153,18 @@ class _Simulator:
         control = np.repeat(voltages, self._substeps, axis=1)[..., None]
         trajectory, _ = mujoco.rollout.rollout(model, data, initial, control)
         return trajectory
+
+    def refit_through(self, states: np.ndarray, voltages: np.ndarray, recorded: np.ndarray) -> np.ndarray:
+        """`states` refitted to the `recorded` angles of the whole windows (`THROUGH_HORIZON_ITERATIONS`
+        of Gauss-Newton), each kept where its rollout fits the window worse than the refit's: upright,
+        an undamped Gauss-Newton step can overshoot."""
+        refit = self.fit_initial_state(states, voltages, recorded, THROUGH_HORIZON_ITERATIONS)
+
+        def misfit(s: np.ndarray) -> np.ndarray:
+            error = self.rollout(s, voltages) - recorded
+            return np.sum((np.mod(error + np.pi, 2.0 * np.pi) - np.pi) ** 2, axis=(1, 2))
+
+        return np.where((misfit(refit) < misfit(states))[:, None], refit, states)
 
     def fit_initial_state(self, guess: np.ndarray, voltages: np.ndarray, recorded: np.ndarray,
                           iterations: int = ESTIMATION_ITERATIONS) -> np.ndarray:
