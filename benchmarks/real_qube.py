@@ -8,7 +8,12 @@ predictions 0.1, 0.5 and 1 s ahead (`calibration.prediction`: MuJoCo rollouts fr
 estimated on the 0.1 s before each start, recorded voltages replayed; both angles, wrapped):
 
 * held-out chirps: leave one recording out, calibrate on the other nine, predict it;
-* every swing-up, from a calibration on all ten chirps;
+* every swing-up, from a calibration on all ten chirps, also split into starts where the pendulum
+  is balancing (within 0.4 rad of upright: a +-4 V limit cycle, the arm reversing every 0.1 s) and
+  where it swings; and two floors there: the calibrated model's error 0.1 s ahead from the start
+  that suits it best (fitted through the horizon too: its own error, not the start's), and how far
+  its own prediction moves when the start's pendulum angle moves one encoder count (chaos: upright,
+  the replayed voltages do not stabilise the model, and an error grows about 10-fold per 0.2 s);
 * what each part of the model buys: calibrations on eight chirps (held out: neg_4, pos_4) with
   the unknowns added one group at a time, each row also predicting every swing-up 0.1 s ahead;
 * the parameters with their 95 % intervals against nominal, and the spread (min, max) of the
@@ -55,16 +60,21 @@ ABLATION = (
     ("+ fractional-sample latency", ()),
     ("+ slack band of the cable", ("cable_slack",)),
 )
+BALANCING_ANGLE = 0.4
+"""A swing-up's start counts as balancing where the pendulum is within this of upright (rad)."""
+ENCODER_COUNT = 2.0 * np.pi / 2048
+"""One count of the Qube-Servo 2's encoders (rad)."""
 FRACTIONAL_LATENCY_ROW = 4
 """The ablation's rows before this one take the latency rounded to whole samples."""
 
 
-def predict(calibration_: calibration.Calibration | None, m, horizon: float) -> np.ndarray:
-    """Errors at `horizon` (starts, 2) of the nominal model (None) or a calibration on `m`."""
+def predictions(calibration_: calibration.Calibration | None, m, horizon: float, **options
+                ) -> prediction.Predictions:
+    """Predictions `horizon` ahead on `m` of the nominal model (None) or a calibration; `options` as
+    `prediction.predict`'s."""
     samples = np.arange(len(m))
     if calibration_ is None:
-        return prediction.predict(m, {}, samples, horizon=horizon,
-                                  smoothed_start=SMOOTHED_START).error_at_horizon
+        return prediction.predict(m, {}, samples, horizon=horizon, smoothed_start=SMOOTHED_START, **options)
     c = calibration_
     rest = c.offsets.get("arm_encoder_offset")
     return prediction.predict(
@@ -72,7 +82,54 @@ def predict(calibration_: calibration.Calibration | None, m, horizon: float) -> 
         (0.0, c.offsets["pendulum_encoder_offset"]), horizon=horizon,
         voltage_deadzone=c.actuation["voltage_deadzone"],
         cable_rest_angle=0.0 if rest is None else -rest, cable_slack=c.offsets.get("cable_slack", 0.0),
-        smoothed_start=SMOOTHED_START).error_at_horizon
+        smoothed_start=SMOOTHED_START, **options)
+
+
+def predict(calibration_: calibration.Calibration | None, m, horizon: float) -> np.ndarray:
+    """Errors at `horizon` (starts, 2) of the nominal model (None) or a calibration on `m`."""
+    return predictions(calibration_, m, horizon).error_at_horizon
+
+
+def balancing(p: prediction.Predictions, m) -> np.ndarray:
+    """Which of the starts of `p` find the pendulum balancing (within `BALANCING_ANGLE` of upright)."""
+    return np.abs(m.alpha[p.starts]) < BALANCING_ANGLE
+
+
+def wrapped(angle: np.ndarray) -> np.ndarray:
+    return np.mod(angle + np.pi, 2.0 * np.pi) - np.pi
+
+
+def swingup_table(calibration_: calibration.Calibration | None, ms: list) -> dict[str, dict[str, float]]:
+    """RMS errors (rad) at each horizon on the swing-ups `ms`: all starts, balancing, swinging."""
+    out = {}
+    for h in HORIZONS:
+        runs = [(predictions(calibration_, m, h), m) for m in ms]
+        out[f"{h:g}"] = split([p.error_at_horizon for p, _ in runs], [balancing(p, m) for p, m in runs])
+    return out
+
+
+def floors(c: calibration.Calibration, ms: list) -> dict[str, dict[str, float]]:
+    """What limits the calibrated model on the swing-ups `ms`, balancing and swinging starts apart (rad):
+    its error 0.1 s ahead from the start fitted through the horizon too (the model's own error), and
+    how far its own prediction moves, 0.1 and 0.5 s ahead, when the start's pendulum angle moves one
+    encoder count (the chaos no model can beat)."""
+    out = {}
+    runs = [(predictions(c, m, 0.1, fit_through_horizon=True), m) for m in ms]
+    out["best_start_0.1"] = split([p.error_at_horizon for p, _ in runs], [balancing(p, m) for p, m in runs])
+    for h in (0.1, 0.5):
+        moved, upright = [], []
+        for m in ms:
+            base = predictions(c, m, h, start_perturbation=np.zeros(4))
+            other = predictions(c, m, h, start_perturbation=np.array([0.0, ENCODER_COUNT, 0.0, 0.0]))
+            moved.append(wrapped(other.predicted[:, -1] - base.predicted[:, -1]))
+            upright.append(balancing(base, m))
+        out[f"one_count_{h:g}"] = split(moved, upright)
+    return out
+
+
+def split(errors: list[np.ndarray], upright: list[np.ndarray]) -> dict[str, float]:
+    return {"all": rms(errors), "balancing": rms([e[b] for e, b in zip(errors, upright, strict=True)]),
+            "swinging": rms([e[~b] for e, b in zip(errors, upright, strict=True)])}
 
 
 def rms(errors: list[np.ndarray]) -> float:
@@ -123,7 +180,8 @@ def main() -> None:
     results["swingups"] = {}
     for hz, paths in swings.items():
         ms = [read[p] for p in paths]
-        results["swingups"][f"{hz}Hz"] = {"nominal": table(None, ms), "calibrated": table(full, ms)}
+        results["swingups"][f"{hz}Hz"] = {"nominal": swingup_table(None, ms),
+                                          "calibrated": swingup_table(full, ms), "floors": floors(full, ms)}
         print(f"swing-ups {hz} Hz", results["swingups"][f"{hz}Hz"], flush=True)
 
     train = [p for p in chirps if not p.endswith("_4.csv")]

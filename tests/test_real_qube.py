@@ -287,3 +287,42 @@ def test_the_real_qube_preset_contains_the_calibrated_real_qube():
     for name in ("sim2real", "wide"):  # the presets the shipped policies were trained with do not
         assert not inside(randomization.load(name).parameters["rotor_inertia"], rotor,
                           parameters.NOMINAL["rotor_inertia"])
+
+
+def recorded(rows, tmp_path, name):
+    return recordings.read(write(tmp_path / name, rows))
+
+
+def test_a_start_error_grows_upright_and_stays_small_hanging(tmp_path):
+    count = 2 * np.pi / 2048
+    hanging = recorded(simulated_chirp({}, latency=0.0, deadzone=0.0, seconds=3.0), tmp_path, "hanging.csv")
+    physics = qube.make_physics(250.0, {})
+    physics.reset_to([0.0, 1e-4, 0.0, 0.0])
+    angles = []
+    for _ in range(750):  # released almost upright, 0 V: it stays near upright for the first starts
+        angles.append(physics.true_state()[:2])
+        physics.set_voltage(0.0)
+        physics.step(qube.substeps_per_control_period(250.0))
+    angles = np.array(angles)
+    t = np.arange(750) / 250.0
+    rows = np.column_stack([t, np.zeros(750), angles[:, 0], angles[:, 1]])
+    upright = recorded(rows, tmp_path, "upright.csv")
+    assert abs(angles[50, 1]) < 0.01  # the first start (0.1 s of estimation + 25 samples in)
+    moved = {}
+    for name, m in (("hanging", hanging), ("upright", upright)):
+        base, other = (prediction.predict(m, {}, np.arange(len(m)), start_perturbation=np.array([0, a, 0, 0]))
+                       for a in (0.0, count))
+        moved[name] = abs(other.predicted[0, -1, 1] - base.predicted[0, -1, 1])
+    assert moved["hanging"] < 2 * count
+    assert moved["upright"] > 10 * count
+
+
+def test_a_start_fitted_through_the_horizon_leaves_only_the_models_error(tmp_path):
+    truth = {"rotor_inertia": 3e-5, "arm_damping": 5e-5}
+    m = recorded(simulated_chirp(truth, latency=0.0, deadzone=0.0, seconds=3.0), tmp_path, "chirp.csv")
+    samples = np.arange(len(m))
+    exact = prediction.predict(m, truth, samples, fit_through_horizon=True).rms_at_horizon
+    wrong_past = prediction.predict(m, {}, samples).rms_at_horizon
+    wrong_best = prediction.predict(m, {}, samples, fit_through_horizon=True).rms_at_horizon
+    assert exact < 1e-3
+    assert 1e-3 < wrong_best < 0.5 * wrong_past

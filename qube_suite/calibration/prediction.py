@@ -26,6 +26,8 @@ ESTIMATION_TIME = 0.1
 """Recorded time before each start (s) that its state is estimated from."""
 ESTIMATION_ITERATIONS = 2
 """Gauss-Newton iterations of that estimate."""
+THROUGH_HORIZON_ITERATIONS = 4
+"""Gauss-Newton iterations of a start refitted through the horizon too (from the past's estimate)."""
 START_SPACING = 0.1
 """Time between the starts of successive rollouts (s)."""
 
@@ -56,7 +58,8 @@ class Predictions:
 def predict(measurements: Measurements, parameters: Mapping[str, float], samples: np.ndarray,
             latency: float = 0, offsets: tuple[float, float] = (0.0, 0.0), horizon: float = HORIZON,
             voltage_deadzone: float = 0.0, cable_rest_angle: float = 0.0, cable_slack: float = 0.0,
-            smoothed_start: bool = False) -> Predictions:
+            smoothed_start: bool = False, start_perturbation: np.ndarray | None = None,
+            fit_through_horizon: bool = False) -> Predictions:
     """0.5 s-ahead rollouts of the simulated Qube with `parameters` (long names) from starts every
     `START_SPACING` within the sample indices `samples` (whose windows lie within them too).
 
@@ -71,6 +74,11 @@ def predict(measurements: Measurements, parameters: Mapping[str, float], samples
     `smoothed_start`: start instead from the zero-phase filter's angles and speeds at the start
     itself (which see half its window, 5 samples, past the start): the
     metric of `../shared/real_qube/README.md`, independent of the model.
+    `start_perturbation`: [theta, alpha, theta', alpha'] added to every estimated start state before
+    its rollout (how much a start's error alone moves a prediction). `fit_through_horizon`: refit
+    each estimate to the recorded angles of the horizon too (where that fits the whole window
+    better), not a prediction but a diagnostic that sees the future: the error left with the start
+    that suits the model best is the model's own.
     """
     from qube_suite.calibration.fit import delayed_voltage
 
@@ -95,9 +103,17 @@ def predict(measurements: Measurements, parameters: Mapping[str, float], samples
     voltages = np.stack([acting[j:j + total] for j in first])
     recorded = np.stack([angles[j:j + total + 1] for j in first])
     with _Simulator(parameters, 1.0 / h, cable_rest_angle, cable_slack) as simulator:
-        state = guess if smoothed_start else simulator.fit_initial_state(guess, voltages[:, :past],
-                                                                          recorded[:, :past + 1])
-        predicted = simulator.rollout(state, voltages)[:, past:]
+        if smoothed_start:
+            state = guess
+        else:
+            state = simulator.fit_initial_state(guess, voltages[:, :past], recorded[:, :past + 1])
+        if fit_through_horizon:
+            state = simulator.refit_through(state, voltages, recorded)
+        if start_perturbation is None:
+            predicted = simulator.rollout(state, voltages)[:, past:]
+        else:
+            at_start = simulator.advance(state, voltages[:, :past]) + np.asarray(start_perturbation, float)
+            predicted = simulator.rollout(at_start, voltages[:, past:])
     return Predictions(starts=starts, time=np.arange(steps + 1) * h, predicted=predicted,
                        measured=recorded[:, past:])
 
@@ -121,21 +137,42 @@ class _Simulator:
     def rollout(self, states: np.ndarray, voltages: np.ndarray) -> np.ndarray:
         """Angles [theta, alpha] (rollouts, samples + 1, 2) from `states` (rollouts, 4) under
         `voltages` (rollouts, samples), each held for one sample."""
+        qpos = self._trajectory(states, voltages)[:, self._substeps - 1::self._substeps, 1:3]
+        return np.concatenate([states[:, None, :2], qpos], axis=1)
+
+    def advance(self, states: np.ndarray, voltages: np.ndarray) -> np.ndarray:
+        """[theta, alpha, theta', alpha'] (rollouts, 4) after `voltages` (rollouts, samples) from `states`."""
+        return self._trajectory(states, voltages)[:, -1, 1:5]
+
+    def _trajectory(self, states: np.ndarray, voltages: np.ndarray) -> np.ndarray:
+        """MuJoCo's full physics states (rollouts, physics steps, size) from `states` under `voltages`."""
         model, data = self._physics.model.ptr, self._physics.data.ptr
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
         initial = np.zeros((len(states), mujoco.mj_stateSize(model, spec)))
         initial[:, 1:3], initial[:, 3:5] = states[:, :2], states[:, 2:]  # time, qpos, qvel, ...
         control = np.repeat(voltages, self._substeps, axis=1)[..., None]
         trajectory, _ = mujoco.rollout.rollout(model, data, initial, control)
-        qpos = trajectory[:, self._substeps - 1::self._substeps, 1:3]
-        return np.concatenate([states[:, None, :2], qpos], axis=1)
+        return trajectory
 
-    def fit_initial_state(self, guess: np.ndarray, voltages: np.ndarray, recorded: np.ndarray) -> np.ndarray:
+    def refit_through(self, states: np.ndarray, voltages: np.ndarray, recorded: np.ndarray) -> np.ndarray:
+        """`states` refitted to the `recorded` angles of the whole windows (`THROUGH_HORIZON_ITERATIONS`
+        of Gauss-Newton), each kept where its rollout fits the window worse than the refit's: upright,
+        an undamped Gauss-Newton step can overshoot."""
+        refit = self.fit_initial_state(states, voltages, recorded, THROUGH_HORIZON_ITERATIONS)
+
+        def misfit(s: np.ndarray) -> np.ndarray:
+            error = self.rollout(s, voltages) - recorded
+            return np.sum((np.mod(error + np.pi, 2.0 * np.pi) - np.pi) ** 2, axis=(1, 2))
+
+        return np.where((misfit(refit) < misfit(states))[:, None], refit, states)
+
+    def fit_initial_state(self, guess: np.ndarray, voltages: np.ndarray, recorded: np.ndarray,
+                          iterations: int = ESTIMATION_ITERATIONS) -> np.ndarray:
         """The states at the windows' starts whose rollouts under `voltages` best match the `recorded`
-        angles (Gauss-Newton from `guess`, finite differences), and where they end."""
+        angles (`iterations` of Gauss-Newton from `guess`, finite differences)."""
         state = guess.copy()
         steps = np.array([1e-4, 1e-4, 1e-3, 1e-3])
-        for _ in range(ESTIMATION_ITERATIONS):
+        for _ in range(iterations):
             batch = np.concatenate([state[None], state[None] + np.diag(steps)[:, None, :]], axis=0)
             angles = self.rollout(batch.reshape(-1, 4), np.tile(voltages, (5, 1))).reshape(5, len(state), -1)
             residual = angles[0] - recorded.reshape(len(state), -1)
