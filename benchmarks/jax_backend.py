@@ -114,9 +114,10 @@ def throughput(args) -> dict:
 def hyperparameter(text: str) -> tuple[str, int | float]:
     """`KEY=VALUE` of `--set` as (key, number); argparse reports a malformed one."""
     key, equals, value = text.partition("=")
-    if not equals or key not in training.HYPERPARAMETERS:
-        raise argparse.ArgumentTypeError(f"expected KEY=NUMBER with KEY one of "
-                                         f"{', '.join(training.HYPERPARAMETERS)}, got {text!r}")
+    known = {**training.HYPERPARAMETERS, **training.ENVIRONMENT_SETTINGS}
+    if not equals or key not in known:
+        raise argparse.ArgumentTypeError(f"expected KEY=NUMBER with KEY one of {', '.join(known)}, "
+                                         f"got {text!r}")
     try:
         return key, int(value) if value.lstrip("-").isdigit() else float(value)
     except ValueError:
@@ -158,7 +159,8 @@ def main() -> None:
     learn.add_argument("--num-evals", type=int, default=None)
     learn.add_argument("--out", default="runs/jax")
     learn.add_argument("--set", type=hyperparameter, action="append", default=[], metavar="KEY=VALUE",
-                       help="change one of Brax PPO's settings (qube_suite.mjx.training.HYPERPARAMETERS)")
+                       help="change one of Brax PPO's settings (qube_suite.mjx.training.HYPERPARAMETERS) or "
+                            "the environment's (ENVIRONMENT_SETTINGS: history=8, privileged_critic=1)")
     for command in (rate, learn):
         command.add_argument("--json", default=None, help="append the result to this JSON-lines file")
     args = parser.parse_args()

@@ -209,14 +209,123 @@ def test_replicated_arrays_have_the_type_of_brax_pmapped_outputs():
 
 
 @pytest.mark.slow
-def test_training_on_the_backend_writes_a_policy_the_numpy_domains_run(tmp_path):
+@pytest.mark.parametrize("adaptive", [{}, {"history": 2, "privileged_critic": True}])
+def test_training_on_the_backend_writes_a_policy_the_numpy_domains_run(tmp_path, adaptive):
     from qube_suite import evaluate
+    from qube_suite.policies import mlp
 
     result = training.train("balance", steps=20_000, randomization="sim2real", out=tmp_path, progress=None,
                             hyperparameters={"num_envs": 16, "num_eval_envs": 4, "num_evals": 2,
                                              "batch_size": 16, "num_minibatches": 4, "unroll_length": 8,
-                                             "num_updates_per_batch": 2})
+                                             "num_updates_per_batch": 2, **adaptive})
     assert result.policy_path == tmp_path / "policy.npz" and (tmp_path / "training.json").is_file()
     assert len(result.evaluations) == 2
+    assert mlp.load(result.policy_path).history == adaptive.get("history", 0)
     summary = evaluate(str(result.policy_path), domain="qube", task="balance", episodes=2, seed=0)
     assert len(summary.returns) == 2 and all(np.isfinite(summary.returns))
+
+
+def test_an_episode_begun_by_brax_auto_reset_runs_as_a_fresh_one():
+    """Brax's AutoResetWrapper puts back the first state's physics and observation but not its info:
+    the velocity filter and the action delay line must not carry the last episode's values over."""
+    from brax.envs.wrappers.training import AutoResetWrapper, EpisodeWrapper
+
+    config = {"effects": {"velocity_filter": True, "action_delay": {"steps": 2}}}
+    env = AutoResetWrapper(EpisodeWrapper(environment.QubeMjx("swingup", randomization=config), 6, 1))
+    actions = jnp.asarray([0.9, -0.7, 0.8, -0.9, 0.6, 1.0], jnp.float32)[:, None]
+
+    def body(state, action):
+        state = env.step(state, action)
+        return state, (state.info["measured"], state.obs)
+
+    first = env.reset(jax.random.PRNGKey(3))
+    _, (measured, obs) = jax.jit(lambda s: jax.lax.scan(body, s, jnp.concatenate([actions, actions])))(first)
+    measured, obs = np.asarray(measured), np.asarray(obs)
+    # the second episode starts at the first one's start and gets the same actions
+    np.testing.assert_allclose(measured[7:], measured[1:6], atol=1e-6)
+    np.testing.assert_allclose(obs[7:], obs[1:6], atol=1e-6)
+
+
+def _brax_policy(observation_size, history, privileged=False):
+    """A Brax PPO policy with observation statistics for `observation_size`, its deterministic
+    inference function and its export to a numpy policy of `history`."""
+    from brax.training.acme import running_statistics, specs
+    from brax.training.agents.ppo import networks as ppo_networks
+
+    critic = {"value_obs_key": "privileged_state"} if privileged else {}
+    network = ppo_networks.make_ppo_networks(observation_size, 1, **critic,
+                                             preprocess_observations_fn=running_statistics.normalize)
+    shapes = observation_size if privileged else {"state": (observation_size,)}
+    normalizer = running_statistics.init_state(
+        {key: specs.Array(shape, jnp.dtype("float32")) for key, shape in shapes.items()})
+    samples = {key: jax.random.normal(jax.random.PRNGKey(i), (500, *shape)) * 0.3 + 0.1
+               for i, (key, shape) in enumerate(shapes.items())}
+    normalizer = running_statistics.update(normalizer, samples)
+    if not privileged:
+        normalizer = normalizer.replace(mean=normalizer.mean["state"], std=normalizer.std["state"],
+                                        summed_variance=normalizer.summed_variance["state"])
+    params = (normalizer, network.policy_network.init(jax.random.PRNGKey(1)), None)
+    act = ppo_networks.make_inference_fn(network)(params, deterministic=True)
+    return act, training.export(params, "swingup", 3.0, {}, history)
+
+
+@pytest.mark.parametrize("privileged", [False, True])
+def test_a_policy_with_history_acts_alike_on_jax_and_numpy(privileged):
+    """The JAX environment's history observation is the numpy policy's history input, step by step,
+    with or without a privileged critic's part beside it."""
+    history = 3
+    env = environment.QubeMjx("swingup", voltage_limit=3.0, history=history, privileged_critic=privileged)
+    act, policy = _brax_policy(env.observation_size, history, privileged)
+    state = env.start(jnp.asarray([0.2, math.pi - 0.3, 1.0, -2.0], jnp.float32), jax.random.PRNGKey(0))
+
+    def body(state, key):
+        action, _ = act(state.obs, key)
+        state = env.step(state, action)
+        return state, (state.info["measured"], action[0])
+
+    keys = jax.random.split(jax.random.PRNGKey(4), 60)
+    first = state.info["measured"]
+    _, (measured, actions) = jax.jit(lambda s: jax.lax.scan(body, s, keys))(state)
+    observed = np.concatenate([np.asarray(first)[None], np.asarray(measured)[:-1]])
+    volts = np.array([policy(observation) for observation in observed.astype(np.float64)])
+    assert np.ptp(volts) > 0.3  # the voltages vary, so the history carries information
+    np.testing.assert_allclose(volts, 3.0 * np.asarray(actions), atol=2e-4)
+    assert policy.history == history
+
+
+def test_the_privileged_critic_sees_the_exact_state_and_each_worlds_plant():
+    config = {"parameters": {"pendulum_mass": {"distribution": "uniform", "low": 0.8, "high": 1.2}},
+              "effects": {"quantization": True, "dead_zone": {"voltage": {"distribution": "uniform",
+                                                                          "low": 0.0, "high": 0.3}}}}
+    env = environment.QubeMjx("swingup", randomization=config, history=1, privileged_critic=True)
+    plain = environment.QubeMjx("swingup", randomization=config, history=1)
+    assert env.observation_size == {"state": (13,), "privileged_state": (13 + 6 + 11,)}
+    batch, axes = env.draw_worlds(None, jax.random.split(jax.random.PRNGKey(0), 2))
+    start = jnp.asarray([0.1, 3.0, 0.0, 0.0], jnp.float32)
+
+    def first_steps(environment_, sys):
+        environment_.sys = sys
+        state = environment_.step(environment_.start(start, jax.random.PRNGKey(1)), jnp.ones(1))
+        return state.obs, environment_.exact_state(state.pipeline_state)
+
+    for world in range(2):
+        sys = jax.tree.map(lambda leaf, axis, w=world: leaf if axis is None else leaf[w], batch, axes,
+                           is_leaf=lambda leaf: leaf is None)
+        obs, exact = first_steps(env, sys)
+        plain_obs, _ = first_steps(plain, sys)
+        np.testing.assert_array_equal(obs["state"], plain_obs)
+        critic = np.asarray(obs["privileged_state"])
+        np.testing.assert_array_equal(critic[:13], plain_obs)
+        np.testing.assert_allclose(critic[13:19], [math.cos(exact[0]), math.sin(exact[0]), math.cos(exact[1]),
+                                                   math.sin(exact[1]), exact[2], exact[3]], atol=1e-6)
+        plant = dict(zip(environment.PRIVILEGED_PLANT, critic[19:], strict=True))
+        ids = qube.ElementIds(qube_batch.physics_model(250.0))
+        assert plant["pendulum_mass"] == pytest.approx(float(sys.model.body_mass[ids.pendulum]), rel=1e-6)
+        assert plant["dead_zone"] == pytest.approx(float(sys.dead_zone), rel=1e-6)
+    assert not np.allclose(np.asarray(batch.dead_zone)[0], np.asarray(batch.dead_zone)[1])
+
+
+def test_a_bad_history_is_refused():
+    for bad in (-1, 2.5, True):
+        with pytest.raises(ValueError, match="history must be an integer"):
+            environment.QubeMjx("swingup", history=bad)

@@ -10,6 +10,13 @@ offset, dead zone) to the motor of `qube.xml`; one control period of MuJoCo's st
 exact state. The task object itself (`qube_suite.tasks`) gives the reward, the safe
 set and the observation: its formulas run on JAX arrays (`tasks.elementwise`), and
 its start distribution (`tasks.starts`) is drawn with `jax.random`.
+
+With `history=k` the observation is the policy's input with its last k observations
+and voltages, laid out as `qube_suite.policies.history` lays them out, so that an
+exported policy with that history runs on the numpy domains. With
+`privileged_critic=True` the observation is Brax's dictionary of a policy part
+(`"state"`) and a critic part (`"privileged_state"`: the policy's input, the exact
+state and the world's drawn plant and effects), for PPO with an asymmetric critic.
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ from qube_suite.devices.qube import simulation as qube
 from qube_suite.devices.qube import tasks as qube_tasks
 from qube_suite.mjx import offered
 from qube_suite.mjx import worlds as world_draws
+from qube_suite.policies.history import input_size
 from qube_suite.randomization import config as randomization_config
 from qube_suite.tasks.starts import ClippedNormalStart, UniformStart
 from qube_suite.velocity_filter import filtered_velocity
@@ -64,12 +72,20 @@ class QubeMjx(Env):
         control_frequency: control steps per second (Hz).
         voltage_limit: largest motor voltage (V); default: the task's.
         seed: seeds the world draws of `draw_worlds`.
+        history: the number of past observations and voltages the policy sees (0 for none).
+        privileged_critic: give the critic the exact state and the world's plant (observation
+            `{"state": ..., "privileged_state": ...}`).
     """
 
     def __init__(self, task: str = "swingup", randomization="none", control_frequency: float = 250.0,
-                 voltage_limit: float | None = None, seed: int = 0):
+                 voltage_limit: float | None = None, seed: int = 0, history: int = 0,
+                 privileged_critic: bool = False):
         offered.check_task(task)
         qube.check_control_frequency(control_frequency)
+        if not (isinstance(history, int) and not isinstance(history, bool) and history >= 0):
+            raise ValueError(f"history must be an integer >= 0, got {history!r}")
+        self.history = history
+        self.privileged_critic = bool(privileged_critic)
         limit = {} if voltage_limit is None else {"voltage_limit": voltage_limit}
         self.task = qube_tasks.SUITE[task](observation="trig", **limit)
         self.task_name = task
@@ -81,14 +97,18 @@ class QubeMjx(Env):
         self._effects = set(self.config.effects)
         self.sys, _ = world_draws.draw(self.config, None, self.seed, self.control_frequency)
         ids = qube.ElementIds(qube_batch.physics_model(control_frequency))
+        self._ids = ids
         self._positions = jnp.array([ids.arm_qpos, ids.pendulum_qpos])
         self._velocities = jnp.array([ids.arm_dof, ids.pendulum_dof])
 
     # -- Brax's environment API ----------------------------------------------------
 
     @property
-    def observation_size(self) -> int:
-        return 6
+    def observation_size(self) -> int | dict[str, tuple[int]]:
+        policy = input_size(FEATURES, self.history)
+        if self.privileged_critic:
+            return {"state": (policy,), "privileged_state": (policy + FEATURES + len(PRIVILEGED_PLANT),)}
+        return policy
 
     @property
     def action_size(self) -> int:
@@ -114,11 +134,13 @@ class QubeMjx(Env):
         data = data.replace(qpos=data.qpos.at[self._positions].set(state[:2]),
                             qvel=data.qvel.at[self._velocities].set(state[2:]))
         rng, noise_key = jax.random.split(rng)
-        quantized = self._quantize(self.exact_state(data))  # the filter starts settled, before the noise
-        measured = self._add_noise(quantized, noise_key)
-        info = {"rng": rng, "measured": measured, "filter": quantized,
-                "commands": jnp.zeros(self._delay_length, data.ctrl.dtype)}
-        obs, reward, done = self.rules(measured, data.time)
+        memory = self._first_memory(data)
+        measured = self._add_noise(memory["filter"], noise_key)
+        info = {"rng": rng, "measured": measured, **memory}
+        features, reward, done = self.rules(measured, data.time)
+        past = jnp.tile(features, self.history)
+        obs = self._observation(jnp.concatenate([features, past, jnp.zeros(self.history, features.dtype)]),
+                                data)
         return State(pipeline_state=data, obs=obs, reward=jnp.zeros_like(reward), done=jnp.zeros_like(done),
                      metrics={}, info=info)
 
@@ -127,9 +149,14 @@ class QubeMjx(Env):
         [-1, 1], a non-finite action taken as 0)."""
         action = jnp.where(jnp.isfinite(action[0]), jnp.clip(action[0], -1.0, 1.0), 0.0)
         volts = action * self.task.voltage_limit
-        info = dict(state.info)
-        motor, info["commands"] = self._actuate(volts, info["commands"])
         data = state.pipeline_state
+        # an episode's first step: Brax's auto-reset puts back the first physics and observation, not
+        # the info, so the effects' memory is started again here
+        fresh = data.time == 0.0
+        info = dict(state.info) | jax.tree.map(lambda first, last: jnp.where(fresh, first, last),
+                                               self._first_memory(data),
+                                               {key: state.info[key] for key in ("filter", "commands")})
+        motor, info["commands"] = self._actuate(volts, info["commands"])
         data = data.replace(ctrl=jnp.reshape(motor, (1,)).astype(data.ctrl.dtype))
         for _ in range(self._substeps):
             data = mjx.step(self.sys.model, data)
@@ -145,9 +172,11 @@ class QubeMjx(Env):
             info["filter"] = measured
         measured = self._add_noise(measured, noise_key)
         info["measured"] = measured
-        obs, reward, done = self.rules(measured, data.time)
+        features, reward, done = self.rules(measured, data.time)
         done = jnp.where(diverged, 1.0, done)
-        obs = jnp.where(diverged, state.obs, obs)
+        inputs = self._policy_inputs(state.obs, features, volts)
+        obs = jax.tree.map(lambda last, new: jnp.where(diverged, last, new), state.obs,
+                           self._observation(inputs, data))
         return state.replace(pipeline_state=data, obs=obs, reward=reward, done=done, info=info)
 
     def exact_state(self, data: mjx.Data) -> jax.Array:
@@ -165,7 +194,40 @@ class QubeMjx(Env):
         done = 1.0 - jnp.asarray(self.task.in_safe_set(view), measured.dtype)
         return obs, reward, done
 
+    # -- observations ----------------------------------------------------------------
+
+    def _policy_inputs(self, last_obs, features: jax.Array, volts: jax.Array) -> jax.Array:
+        """The policy's input: `features` with the last input's features and voltages moved one step
+        back and the voltage `volts` (V) just applied (`qube_suite.policies.history`'s layout)."""
+        if not self.history:
+            return features
+        last = last_obs["state"] if self.privileged_critic else last_obs
+        size, k = features.shape[0], self.history
+        past = jnp.concatenate([last[:size], last[size:size * k]])
+        voltages = jnp.concatenate([jnp.reshape(volts, (1,)).astype(last.dtype), last[size * (1 + k):-1]])
+        return jnp.concatenate([features, past, voltages])
+
+    def _observation(self, inputs: jax.Array, data: mjx.Data):
+        """What the environment returns: the policy's `inputs`, or with a privileged critic Brax's
+        dictionary of them and the critic's input (the inputs, the exact state as the task's features
+        would give it, the world's plant and effects)."""
+        if not self.privileged_critic:
+            return inputs
+        exact = self.exact_state(data)
+        trig = jnp.stack([jnp.cos(exact[0]), jnp.sin(exact[0]), jnp.cos(exact[1]), jnp.sin(exact[1]),
+                          exact[2], exact[3]])
+        plant = jnp.stack([jnp.asarray(read(self.sys, self._ids), inputs.dtype)
+                           for read in PRIVILEGED_PLANT.values()])
+        critic = jnp.concatenate([inputs, trig.astype(inputs.dtype), plant])
+        return {"state": inputs, "privileged_state": critic}
+
     # -- effects ---------------------------------------------------------------------
+
+    def _first_memory(self, data: mjx.Data) -> dict[str, jax.Array]:
+        """The effects' memory at an episode's start in `data`: the velocity filter settled on the
+        quantized state (before noise), and an empty delay line."""
+        return {"filter": self._quantize(self.exact_state(data)),
+                "commands": jnp.zeros(self._delay_length, data.ctrl.dtype)}
 
     def _actuate(self, volts: jax.Array, commands: jax.Array) -> tuple[jax.Array, jax.Array]:
         """The motor voltage (V) for the command `volts`, and the updated delay line (newest last)."""
@@ -189,6 +251,25 @@ class QubeMjx(Env):
             return measured
         noisy = measured + self.sys.noise_std * jax.random.normal(key, (4,), measured.dtype)
         return jnp.concatenate([wrap_angle(noisy[:2]), noisy[2:]])
+
+
+FEATURES = 6
+"""Features of the task's trig observation: cos and sin of both angles, both velocities."""
+PRIVILEGED_PLANT = {
+    "arm_damping": lambda sys, ids: sys.model.dof_damping[ids.arm_dof],
+    "pendulum_damping": lambda sys, ids: sys.model.dof_damping[ids.pendulum_dof],
+    "arm_inertia": lambda sys, ids: sys.model.dof_armature[ids.arm_dof],
+    "arm_friction": lambda sys, ids: sys.model.dof_frictionloss[ids.arm_dof],
+    "pendulum_friction": lambda sys, ids: sys.model.dof_frictionloss[ids.pendulum_dof],
+    "pendulum_mass": lambda sys, ids: sys.model.body_mass[ids.pendulum],
+    "motor_gain": lambda sys, ids: sys.model.actuator_gainprm[ids.motor, 0],
+    "cable_stiffness": lambda sys, ids: sys.model.jnt_stiffness[ids.arm_joint],
+    "delay_steps": lambda sys, ids: sys.delay_steps,
+    "voltage_offset": lambda sys, ids: sys.voltage_offset,
+    "dead_zone": lambda sys, ids: sys.dead_zone,
+}
+"""What the privileged critic knows of its world, by name: model fields the randomization draws
+(`qube.write_parameters`) and the drawn effects."""
 
 
 def draw_start(start: UniformStart | ClippedNormalStart, key: jax.Array) -> jax.Array:

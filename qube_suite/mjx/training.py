@@ -37,6 +37,9 @@ HYPERPARAMETERS: dict[str, Any] = {
 }
 """Brax PPO's settings (MuJoCo Playground's for dm_control tasks, with 4096 worlds and 8 updates per
 batch); the episode length is the task's (2048 steps at 250 Hz)."""
+ENVIRONMENT_SETTINGS: dict[str, Any] = {"history": 0, "privileged_critic": False}
+"""Settings of the environment trained on (`QubeMjx`'s keywords), given with the hyperparameters: the
+policy's observation history, and a critic that sees the exact state and the world's plant."""
 NETWORK_KEYS = ("policy_hidden_layer_sizes", "value_hidden_layer_sizes")
 EPISODE_STEPS = 2048
 """Control steps per episode: the numpy environments' time limit at 250 Hz."""
@@ -61,13 +64,16 @@ def train(task: str = "swingup", steps: int = 60_000_000, randomization="none", 
     write `out/policy.npz` and `out/training.json` (and with `snapshots`, the policy of every
     evaluation as `out/snapshots/<steps>.npz`)."""
     brax_compat.ensure_device_put_replicated()
-    settings = {**HYPERPARAMETERS, **dict(hyperparameters or {})}
-    unknown = set(settings) - set(HYPERPARAMETERS)
+    known = {**HYPERPARAMETERS, **ENVIRONMENT_SETTINGS}
+    settings = {**known, **dict(hyperparameters or {})}
+    unknown = set(settings) - set(known)
     if unknown:
-        raise ValueError(f"unknown hyperparameters {sorted(unknown)}; known: {', '.join(HYPERPARAMETERS)}")
-    env = QubeMjx(task, randomization=randomization, seed=seed)
-    eval_env = QubeMjx(task, randomization=randomization, seed=seed + 1_000_000)
-    network = functools.partial(ppo_networks.make_ppo_networks,
+        raise ValueError(f"unknown hyperparameters {sorted(unknown)}; known: {', '.join(known)}")
+    world = {key: settings[key] for key in ENVIRONMENT_SETTINGS}
+    env = QubeMjx(task, randomization=randomization, seed=seed, **world)
+    eval_env = QubeMjx(task, randomization=randomization, seed=seed + 1_000_000, **world)
+    critic = {"value_obs_key": "privileged_state"} if env.privileged_critic else {}
+    network = functools.partial(ppo_networks.make_ppo_networks, **critic,
                                 **{key: tuple(settings[key]) for key in NETWORK_KEYS})
     start = time.perf_counter()
     evaluations: list[tuple[int, float, float]] = []
@@ -84,10 +90,11 @@ def train(task: str = "swingup", steps: int = 60_000_000, randomization="none", 
     def snapshot(step: int, _, params) -> None:
         if snapshots:
             moment = {"steps": int(step), "wall_time_s": time.perf_counter() - start}
-            policy = export(params, task, env.task.voltage_limit, moment)
+            policy = export(params, task, env.task.voltage_limit, moment, env.history)
             mlp.save(policy, out / "snapshots" / f"{int(step)}.npz")
 
-    ppo_settings = {key: value for key, value in settings.items() if key not in NETWORK_KEYS}
+    ppo_settings = {key: value for key, value in settings.items() if key in HYPERPARAMETERS
+                    and key not in NETWORK_KEYS}
     randomized = bool(env.config.parameters) or bool(env.config.effects)
     _, params, _ = ppo.train(environment=env, eval_env=eval_env, num_timesteps=steps, seed=seed,
                              episode_length=EPISODE_STEPS, network_factory=network, progress_fn=report,
@@ -99,16 +106,20 @@ def train(task: str = "swingup", steps: int = 60_000_000, randomization="none", 
               "hyperparameters": {key: list(v) if isinstance(v, tuple) else v for key, v in settings.items()},
               "evaluations": evaluations, "wall_time_s": wall_time,
               "devices": [str(device) for device in jax.devices()]}
-    policy = export(params, task, env.task.voltage_limit, record)
+    policy = export(params, task, env.task.voltage_limit, record, env.history)
     path = mlp.save(policy, out / "policy.npz")
     (out / "training.json").write_text(json.dumps(record, indent=1))
     return Result(path, evaluations, wall_time)
 
 
-def export(params, task: str, voltage_limit: float, record: Mapping[str, Any]) -> mlp.MLPPolicy:
+def export(params, task: str, voltage_limit: float, record: Mapping[str, Any],
+           history: int = 0) -> mlp.MLPPolicy:
     """The numpy policy of Brax PPO's `params` (normalizer, policy, value): the policy network's layers
-    up to the action's mean (its first output), normalised by the running statistics."""
+    up to the action's mean (its first output), normalised by the running statistics (of the policy's
+    part of the observation, with a privileged critic); `history`: the environment's."""
     normalizer, policy = params[0], params[1]
+    if isinstance(normalizer.mean, Mapping):  # a privileged critic's observation: the policy's part
+        normalizer = normalizer.replace(mean=normalizer.mean["state"], std=normalizer.std["state"])
     layers = policy["params"]
     names = sorted(layers, key=lambda name: int(name.rsplit("_", 1)[1]))
     weights = [np.asarray(layers[name]["kernel"], dtype=np.float64).T for name in names]
@@ -117,5 +128,5 @@ def export(params, task: str, voltage_limit: float, record: Mapping[str, Any]) -
     std = np.asarray(normalizer.std, dtype=np.float64)
     meta = {"format": mlp.FORMAT, "feature_map": "trig", "activation": ACTIVATION, "squash": True,
             "epsilon": 0.0, "clip": 1e6, "voltage_limit": float(voltage_limit), "observation_size": 4,
-            "history": 0, "task": task, "algo": "brax_ppo", "training": dict(record)}
+            "history": int(history), "task": task, "algo": "brax_ppo", "training": dict(record)}
     return mlp.MLPPolicy(weights, biases, np.asarray(normalizer.mean, dtype=np.float64), std**2, meta)
