@@ -4,13 +4,16 @@ shows it, `qube-suite train --task T` runs T's recipe, and a tiny recipe runs an
 import dataclasses
 import importlib.util
 import json
+import os
 
 import numpy as np
 import pytest
 
 from qube_suite import cli, training
+from qube_suite.calibration.calibration_file import Calibration
+from qube_suite.devices.qube import parameters
 from qube_suite.policies import load_policy, shipped
-from qube_suite.training import imitation, recipes
+from qube_suite.training import calibrated, environments, imitation, recipes
 from qube_suite.training.recipes import RECIPES, Recipe, Stage
 
 HAVE_RL = all(importlib.util.find_spec(name) for name in training.RL_EXTRA)
@@ -28,7 +31,11 @@ def test_every_shipped_policy_has_a_recipe_that_matches_its_training_record():
         last = recipe.stages[-1]
         record = load_policy(spec).meta["training"]
         assert record["task"] == last.task, spec
-        assert record["randomization"] == last.randomization, spec
+        # a calibrated stage trains under the randomization centred on its calibration file
+        assert record["randomization"] == (last.randomization if last.calibration is None else "custom"), spec
+        assert (record.get("calibration") is None) == (last.calibration is None), spec
+        if last.calibration is not None:  # the same file; where the package lies differs by machine
+            assert os.path.basename(record["calibration"]) == os.path.basename(last.calibration), spec
         assert record["seed"] == last.seed, spec
         assert record["steps"] <= last.steps + 8192, spec  # PPO rounds up to whole rollouts
         assert (record.get("init") is None) == (last.init is None), spec
@@ -52,12 +59,70 @@ def test_every_shipped_policy_has_a_recipe_that_matches_its_training_record():
     ({"backend": "tpu"}, "backend must be one of sb3, jax"),
     ({"backend": "jax", "task": "rotor"}, "not 'rotor': its revolution counter"),
     ({"backend": "jax", "exploring_starts": 0.5}, "a jax stage trains from scratch"),
+    ({"calibration": "no_such_qube.yaml"}, "calibration: .*no such calibration file"),
+    ({"calibration": parameters.REAL_QUBE_SERVO2}, "a calibrated stage fine-tunes an earlier stage"),
+    ({"calibration": parameters.REAL_QUBE_SERVO2, "randomization": "wide"}, "not both"),
+    ({"calibration": parameters.REAL_QUBE_SERVO2, "backend": "jax"}, "a jax stage trains from scratch"),
 ])
 def test_a_bad_recipe_is_refused_naming_the_stage(change, message):
     stage = dataclasses.replace(Stage("only", "balance", 100, 1), **change)
     with pytest.raises(ValueError, match=message) as error:
         recipes.check(Recipe("bad", (stage,), "nothing"))
     assert "randomization" in message or "stage 'only'" in str(error.value)
+
+
+def test_a_calibrated_stage_with_a_bad_file_stops_the_recipe_before_any_training(monkeypatch, tmp_path,
+                                                                                  capsys):
+    monkeypatch.setattr(training, "train", lambda task, **kwargs: pytest.fail("trained"))
+    (tmp_path / "bad.yaml").write_text("parameters: {pendulum_mass: 0.03}\n")  # no calibration format
+    for path in ("missing.yaml", tmp_path / "bad.yaml"):
+        recipe = Recipe("for_my_qube", (Stage("first", "balance", 100, 1),
+                                        Stage("mine", "balance", 100, 1, init="first", calibration=path)), "")
+        with pytest.raises(ValueError, match="stage 'mine': calibration: .*(no such|not a qube_suite)"):
+            recipes.run(recipe, out=tmp_path / "runs", progress=False)
+    assert not (tmp_path / "runs").exists()
+    monkeypatch.setitem(RECIPES, "for_my_qube", recipe)
+    assert cli.main(["train", "--recipe", "for_my_qube", "--out", str(tmp_path / "runs")]) == 2
+    assert "calibration:" in capsys.readouterr().err
+
+
+class StopBeforeTrainingError(Exception):
+    """Raised by the stand-in environment builder: the settings were seen, no training needed."""
+
+
+@needs_rl
+def test_a_calibrated_stage_builds_its_worlds_around_the_calibrated_qube(monkeypatch, tmp_path, capsys):
+    latency = 0.006
+    qube = Calibration(parameters=dict(parameters.NOMINAL, pendulum_mass=0.030, arm_damping=4e-4),
+                       intervals={"pendulum_mass": (0.0299, 0.0302), "arm_damping": (3.9e-4, 4.1e-4)},
+                       metadata={}, actuation={"latency_seconds": latency})
+    path = qube.save(tmp_path / "my_qube.yaml")
+    first = tmp_path / "runs" / "first"  # a finished first stage, not trained here
+    first.mkdir(parents=True)
+    for name in ("training.json", "model.zip", "vecnormalize.pkl"):
+        (first / name).write_text("{}")
+    built = []
+
+    def build(task, num_envs, seed, **kwargs):
+        built.append(kwargs)
+        raise StopBeforeTrainingError
+
+    monkeypatch.setattr(environments, "make_vec_env", build)
+    recipe = Recipe("for_my_qube", (Stage("first", "balance", 100, 1),
+                                    Stage("mine", "balance", 100, 1, init="first", calibration=path)), "")
+    with pytest.raises(StopBeforeTrainingError):
+        recipes.run(recipe, out=tmp_path / "runs", progress=False)
+    drawn = built[0]["randomization"]
+    assert drawn == calibrated.randomization_for(path)  # what `train --calibration` draws
+    for name in ("pendulum_mass", "arm_damping"):
+        assert drawn["parameters"][name]["low"] < qube.parameters[name] < drawn["parameters"][name]["high"]
+    assert drawn["parameters"]["pendulum_mass"]["low"] > parameters.NOMINAL["pendulum_mass"]  # centred on it
+    assert drawn["effects"]["action_delay"]["seconds"] == {"distribution": "uniform", "low": 0.0,
+                                                           "high": 2 * latency}
+    assert "randomization centred on the calibration" in capsys.readouterr().out
+    monkeypatch.setitem(RECIPES, "for_my_qube", recipe)
+    row = next(line for line in recipes.listing().splitlines() if line.startswith("| for_my_qube |"))
+    assert "balance 0.0001 M → balance 0.0001 M (calibrated on my_qube.yaml)" in row
 
 
 @pytest.mark.parametrize("name", list(recipes.JAX_RECIPES))

@@ -6,7 +6,9 @@
 
 A recipe is a chain of training runs (`Stage`), each starting from an earlier
 stage's run (`init`), with its own task, steps, randomization, exploring starts,
-seed and hyperparameters; its result is one policy file of its last stage
+seed and hyperparameters, or a calibration to train for (`calibration`: the
+randomization centred on a calibrated Qube, as `qube-suite train --calibration`);
+its result is one policy file of its last stage
 (`keep`: the final `policy.npz`, or `best_policy.npz`, the best periodic
 evaluation's). `qube-suite train --task T` with no single-run option runs the
 recipe named T; `qube-suite train --list-recipes` lists them. A stage whose
@@ -23,11 +25,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import pathlib
 from typing import Any
 
 from qube_suite import baselines, suite
 from qube_suite import randomization as randomization_configs
+from qube_suite.calibration import calibration_file
 from qube_suite.mjx import offered
 
 KEEP = ("policy.npz", "best_policy.npz")
@@ -47,7 +51,10 @@ class Stage:
     for each episode's drawn plant; `teacher_settings`: its controller's keyword
     arguments). `task_kwargs`: the task's settings for
     training and evaluation, e.g. a follow task's target schedule
-    (`{"target": "steps"}`, keywords of `qube_suite.tasks.follow`).
+    (`{"target": "steps"}`, keywords of `qube_suite.tasks.follow`). `calibration`: a calibration
+    file (`qube_suite.calibration`) to train for, instead of a `randomization`: the stage's PPO run
+    draws its worlds from the randomization centred on that Qube (`calibrated.randomization_for`:
+    its parameters, latency and dead zone), fine-tuning the stage it starts from (`init`, required).
     """
 
     name: str
@@ -65,6 +72,7 @@ class Stage:
     teacher_settings: dict[str, Any] = dataclasses.field(default_factory=dict)
     task_kwargs: dict[str, Any] = dataclasses.field(default_factory=dict)
     backend: str = "sb3"
+    calibration: str | os.PathLike | None = None
 
 
 BACKENDS = ("sb3", "jax")
@@ -182,9 +190,11 @@ def check(recipe: Recipe) -> None:
             except ValueError as error:
                 raise ValueError(f"{where}: {error}") from None
             if (stage.teacher is not None or stage.init is not None or stage.task_kwargs
-                    or stage.exploring_starts is not None or stage.keep != "policy.npz"):
+                    or stage.exploring_starts is not None or stage.keep != "policy.npz"
+                    or stage.calibration is not None):
                 raise ValueError(f"{where}: a jax stage trains from scratch on the task's defaults: no "
-                                 "teacher, init, task_kwargs or exploring_starts, and it keeps policy.npz")
+                                 "teacher, init, task_kwargs, exploring_starts or calibration, and it "
+                                 "keeps policy.npz")
         if stage.task not in suite.TASKS_BY_DOMAIN["qube"]:
             raise ValueError(f"{where}: unknown task {stage.task!r}")
         if stage.init is not None and stage.init not in seen:
@@ -196,6 +206,8 @@ def check(recipe: Recipe) -> None:
             raise ValueError(f"{where}: keep must be one of {', '.join(KEEP)}, got {stage.keep!r}")
         if stage.randomization is not None:
             randomization_configs.load(stage.randomization)
+        if stage.calibration is not None:
+            _check_calibration(stage, where)
         if "random" in stage.task_kwargs:
             raise ValueError(f"{where}: task_kwargs: the stage's seed seeds the environments; drop 'random'")
         try:
@@ -217,6 +229,20 @@ def check(recipe: Recipe) -> None:
         seen.add(stage.name)
     if not recipe.stages:
         raise ValueError(f"recipe {recipe.name!r} has no stages")
+
+
+def _check_calibration(stage: Stage, where: str) -> None:
+    """ValueError unless `stage` can train under its calibration: a calibration file, no randomization
+    beside it, and an earlier stage to fine-tune (no teacher)."""
+    try:
+        calibration_file.load(stage.calibration)
+    except (ValueError, TypeError) as error:
+        raise ValueError(f"{where}: calibration: {error}") from None
+    if stage.randomization is not None:
+        raise ValueError(f"{where}: give a randomization or a calibration to centre one on, not both")
+    if stage.init is None or stage.teacher is not None:
+        raise ValueError(f"{where}: a calibrated stage fine-tunes an earlier stage with PPO: give init, "
+                         "no teacher")
 
 
 def finished(directory: pathlib.Path, backend: str = "sb3") -> bool:
@@ -251,8 +277,10 @@ def run(recipe: str | Recipe, out: str | pathlib.Path | None = None, progress: b
         if finished(directory, stage.backend):
             print(f"stage {number}/{len(recipe.stages)} {stage.name}: finished in {directory}, kept")
             continue
+        drawn = (f"randomization centred on the calibration {stage.calibration}" if stage.calibration
+                 else f"randomization {stage.randomization or 'none'}")
         print(f"stage {number}/{len(recipe.stages)} {stage.name}: {stage.task}, {stage.steps} steps, "
-              f"randomization {stage.randomization or 'none'} (about {stage.minutes:g} min)", flush=True)
+              f"{drawn} (about {stage.minutes:g} min)", flush=True)
         if stage.backend == "jax":
             from qube_suite.mjx import training as jax_training
 
@@ -274,13 +302,15 @@ def run(recipe: str | Recipe, out: str | pathlib.Path | None = None, progress: b
         train(stage.task, steps=stage.steps, seed=stage.seed, randomization=stage.randomization,
               out=directory, init=None if stage.init is None else root / stage.init,
               exploring_starts=stage.exploring_starts, hyperparameters=dict(stage.hyperparameters),
-              task_kwargs=dict(stage.task_kwargs), progress=progress, resume=True, **train_kwargs)
+              task_kwargs=dict(stage.task_kwargs), calibration=stage.calibration, progress=progress,
+              resume=True, **train_kwargs)
     return root / recipe.stages[-1].name / recipe.stages[-1].keep
 
 
 def _settings(stage: Stage) -> str:
-    """A stage's randomization and task settings, in brackets ("" without either)."""
-    given = ([stage.randomization] if stage.randomization else []) + [
+    """A stage's randomization or calibration and task settings, in brackets ("" without any)."""
+    given = ([stage.randomization] if stage.randomization else []) + (
+        [f"calibrated on {os.path.basename(stage.calibration)}"] if stage.calibration else []) + [
         f"{key}={value}" for key, value in stage.task_kwargs.items()]
     return f" ({', '.join(given)})" if given else ""
 
