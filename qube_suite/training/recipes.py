@@ -32,6 +32,7 @@ from typing import Any
 from qube_suite import baselines, suite
 from qube_suite import randomization as randomization_configs
 from qube_suite.calibration import calibration_file
+from qube_suite.devices.qube.parameters import REAL_QUBE_SERVO2
 from qube_suite.mjx import offered
 
 KEEP = ("policy.npz", "best_policy.npz")
@@ -118,8 +119,13 @@ GENTLE_ILQR = {"swing_up": "energy", "reference_speed": 2.0, "cost": {"lean_limi
 
 
 RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
-    Recipe("balance", (Stage("balance", "balance", 500_000, 1.8),),
-           "ppo:balance: 2044 in simulation, 100 % success on both domains"),
+    Recipe("balance", (
+        Stage("balance", "balance", 500_000, 1.8),
+        # the nominal policy fails a real Qube's 6 ms latency once its velocities are measured
+        # (docs/calibration.md): fine-tuned for the calibrated real Qube-Servo 2
+        Stage("real_qube", "balance", 500_000, 4.5, init="balance", calibration=REAL_QUBE_SERVO2)),
+           "ppo:balance: 2040 in simulation, 100 % success on both domains, on the calibrated real Qube "
+           "and on the real-Qube substitute"),
     Recipe("dampen", (Stage("dampen", "dampen", 700_000, 0.6, keep="best_policy.npz"),),
            "ppo:dampen: 1944 in simulation, 100 % success on both domains (best evaluation at 0.6 M steps)"),
     Recipe("balance_follow", (
