@@ -3,9 +3,13 @@
 Runs each (task, policy) pair for `--episodes` seeded episodes in simulation of the nominal
 model and of the calibrated real Qube-Servo 2 (`qube_suite.devices.qube.parameters.REAL_QUBE_SERVO2`:
 its parameters, latency, voltage dead zone, cable and encoder offset), and prints the success
-rates side by side.
+rates side by side. `--substitute` adds the hardware substitute (`qube_hardware`): its default
+plant, the plant of the real Qube (`plant="real_qube_servo2"`, `qube_suite.hardware.plant`), and that
+plant with the calibration given to the domain (`parameters`: what the model-based controllers
+and the reset controllers are designed with; a learned policy is the same policy).
 
     python benchmarks/real_qube_policies.py [--episodes 10] [--also swingup=runs/my_policy.npz ...]
+                                            [--substitute] [--pairs swingup=swingup ...]
 
 `--also TASK=POLICY` adds a pair: a policy file (`qube-suite train`'s) or any controller name.
 """
@@ -20,20 +24,31 @@ from qube_suite.devices.qube import parameters
 
 PAIRS = (("swingup", "swingup"), ("balance", "balance"), ("swingup", "ppo:swingup"),
          ("swingup", "ppo:swingup_adaptive"), ("balance", "ppo:balance"))
+SIMULATION = {"nominal model": ("qube", None),
+              "calibrated real Qube-Servo 2": ("qube", {"parameters": parameters.REAL_QUBE_SERVO2})}
+SUBSTITUTE = {"default substitute": ("qube_hardware", None),
+              "real-Qube substitute": ("qube_hardware", {"plant": "real_qube_servo2"}),
+              "real-Qube substitute, calibration given": (
+                  "qube_hardware", {"plant": "real_qube_servo2", "parameters": parameters.REAL_QUBE_SERVO2})}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--also", nargs="*", default=[], metavar="TASK=POLICY")
+    parser.add_argument("--pairs", nargs="*", default=None, metavar="TASK=POLICY",
+                        help="instead of the shipped pairs")
+    parser.add_argument("--substitute", action="store_true", help="also on the hardware substitute")
     args = parser.parse_args()
-    pairs = PAIRS + tuple(tuple(pair.split("=", 1)) for pair in args.also)
+    chosen = PAIRS if args.pairs is None else tuple(tuple(pair.split("=", 1)) for pair in args.pairs)
+    pairs = chosen + tuple(tuple(pair.split("=", 1)) for pair in args.also)
+    columns = {**SIMULATION, **(SUBSTITUTE if args.substitute else {})}
     started = time.perf_counter()
-    print("| task | policy | nominal model | calibrated real Qube-Servo 2 |\n|---|---|---|---|")
+    print("| task | policy | " + " | ".join(columns) + " |\n|---|---|" + "---|" * len(columns))
     for task, policy in pairs:
-        rates = [evaluate(policy, "qube", task, episodes=args.episodes, domain_kwargs=kwargs).success_rate
-                 for kwargs in (None, {"parameters": parameters.REAL_QUBE_SERVO2})]
-        print(f"| {task} | {policy} | {rates[0]:.0%} | {rates[1]:.0%} |", flush=True)
+        rates = [evaluate(policy, domain, task, episodes=args.episodes, domain_kwargs=kwargs).success_rate
+                 for domain, kwargs in columns.values()]
+        print(f"| {task} | {policy} | " + " | ".join(f"{rate:.0%}" for rate in rates) + " |", flush=True)
     print(f"wall time {time.perf_counter() - started:.0f} s")
 
 
