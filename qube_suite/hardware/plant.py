@@ -65,9 +65,9 @@ model does not contain (each off, 0, in the default plant):
   each time: fitted per session on the real recordings, its rest was -0.46 rad in the chirps,
   -0.27 +- 0.05 in the 250 Hz swing-ups and about -0.1 at 500 Hz (docs/calibration.md), a
   standard deviation of 0.18 rad over three sessions.
-- `cable_stiffness_spread` = 0.25 (*estimate*): the cable's stiffness drawn per session,
-  log-normal with this spread: fitted per chirp, the linear cable's stiffness varied by
-  +-5e-4 about 1.3e-3 N m/rad (+-40 %) between consecutive chirps (docs/calibration.md).
+- `cable_stiffness_spread` = 0.4: the cable's stiffness drawn per session, log-normal with
+  this spread: fitted per chirp, the linear cable's stiffness varied by +-5e-4 about
+  1.3e-3 N m/rad (+-40 %) between consecutive chirps (docs/calibration.md).
 - `arm_breakaway` = 6e-4 N m (*estimate*): a stuck arm holds up to 1.6x its sliding
   (Coulomb) friction before it moves; the calibration fits only windows where the arm slides,
   so it cannot see this. Static friction above Coulomb is usual for brushed DC motors and
@@ -233,7 +233,7 @@ the pendulum encoder's offset (a millirad) is left out: the board's encoders cou
 PLANTS: types.MappingProxyType[str, NamedPlant] = types.MappingProxyType({
     "real_qube_servo2": NamedPlant("qube_servo2_usb", parameters.REAL_QUBE_SERVO2, types.MappingProxyType({
         "cable_rest_spread": 0.18,
-        "cable_stiffness_spread": 0.25,
+        "cable_stiffness_spread": 0.4,
         "arm_breakaway": 6.0e-4,
     })),
 })
