@@ -11,8 +11,12 @@ the plant's Coulomb friction and cable stiffness by up to +-`EPISODE_SPREAD`
 overall the mean return and success (no termination, the pendulum within 10
 degrees of upright for the final 2 s) with a 95 % Wilson interval.
 
+`--base real_qube_servo2` draws the plants around a named plant of the substitute
+(`qube_suite.hardware.plant.PLANTS`) instead of its default one: the relative ranges about
+that plant's values, every other parameter (its latency, dead zone, cable band...) kept.
+
     python benchmarks/held_out.py [--policy ppo:swingup ...] [--plants 10] [--episodes 20]
-                                  [--plant-seed 2026] [--jobs 1] [--json FILE]
+                                  [--plant-seed 2026] [--jobs 1] [--json FILE] [--base NAME]
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ import multiprocessing
 import numpy as np
 
 from qube_suite import evaluate
-from qube_suite.hardware.plant import plant_parameters
+from qube_suite.hardware.plant import named_plant, plant_parameters
 from qube_suite.randomization.presets import PRESETS
 
 RELATIVE = {"pendulum_mass": 0.30, "pendulum_length": 0.10, "motor_resistance": 0.25,
@@ -50,15 +54,17 @@ def inside_sim2real(plant: dict[str, float]) -> bool:
     return True
 
 
-def draw_plants(count: int, seed: int) -> list[dict[str, float]]:
-    """`count` plants from the held-out ranges, each outside the `sim2real` ranges (seeded)."""
+def draw_plants(count: int, seed: int, base: str | None = None) -> list[dict[str, float]]:
+    """`count` plants from the held-out ranges, each outside the `sim2real` ranges (seeded); about the
+    named plant `base` (None: the default plant), whose other parameters they keep."""
     random = np.random.default_rng(seed)
+    around = _PLANT if base is None else plant_parameters("qube_servo2_usb", base)
     plants = []
     while len(plants) < count:
-        plant = {name: _PLANT[name] * random.uniform(1 - w, 1 + w) for name, w in RELATIVE.items()}
+        plant = {name: around[name] * random.uniform(1 - w, 1 + w) for name, w in RELATIVE.items()}
         plant |= {name: random.uniform(0.0, high) for name, high in ABSOLUTE.items()}
         if not inside_sim2real(plant):
-            plants.append(plant)
+            plants.append(plant if base is None else {**named_plant(base), **plant})
     return plants
 
 
@@ -100,8 +106,9 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0, help="first episode seed")
     parser.add_argument("--jobs", type=int, default=1, help="cells scored in parallel")
     parser.add_argument("--json", default=None, help="also write the cells to this JSON file")
+    parser.add_argument("--base", default=None, help="draw about this named plant (e.g. real_qube_servo2)")
     args = parser.parse_args()
-    plants = draw_plants(args.plants, args.plant_seed)
+    plants = draw_plants(args.plants, args.plant_seed, args.base)
     jobs = [(policy, i, plant, args.episodes, args.seed) for policy in args.policy
             for i, plant in enumerate(plants)]
     with multiprocessing.Pool(args.jobs) as pool:

@@ -5,9 +5,13 @@ model and of the calibrated real Qube-Servo 2 (`qube_suite.devices.qube.paramete
 its parameters, latency, voltage dead zone, cable and encoder offset), the latter twice: with the
 simulation's exact angles and velocities, and measured as its board measures it (angles in whole
 encoder counts, velocities through the hardware domain's filter: `MEASURED_BY_THE_BOARD`), and
-prints the success rates side by side.
+prints the success rates side by side. `--substitute` adds the hardware substitute (`qube_hardware`):
+its default plant, the plant of the real Qube (`plant="real_qube_servo2"`, `qube_suite.hardware.plant`),
+and that plant with the calibration given to the domain (`parameters`: what the model-based
+controllers and the reset controllers are designed with; a learned policy is the same policy).
 
     python benchmarks/real_qube_policies.py [--episodes 10] [--also swingup=runs/my_policy.npz ...]
+                                            [--substitute] [--pairs swingup=swingup ...]
 
 `--also TASK=POLICY` adds a pair: a policy file (`qube-suite train`'s) or any controller name.
 """
@@ -23,29 +27,40 @@ from qube_suite.velocity_filter import VELOCITY_FILTER_CUTOFF
 
 PAIRS = (("swingup", "swingup"), ("balance", "balance"), ("swingup", "ppo:swingup"),
          ("swingup", "ppo:swingup_adaptive"), ("balance", "ppo:balance"))
-
 MEASURED_BY_THE_BOARD = {"parameters": {}, "effects": {
     "quantization": {"counts_per_revolution": parameters.ENCODER_COUNTS_PER_REVOLUTION},
     "velocity_filter": {"cutoff": VELOCITY_FILTER_CUTOFF}}}
 """A randomization that draws nothing: the encoders' counts and the velocity estimate of a board
 (`qube_hardware`'s filter, 50 rad/s), which a simulation otherwise gives exactly."""
+REAL = {"parameters": parameters.REAL_QUBE_SERVO2}
+SIMULATION = {"nominal model": ("qube", None, None),
+              "calibrated real Qube-Servo 2": ("qube", REAL, None),
+              "the same, measured by its board": ("qube", REAL, MEASURED_BY_THE_BOARD)}
+"""Columns: domain, domain_kwargs, randomization."""
+SUBSTITUTE = {"default substitute": ("qube_hardware", None, None),
+              "real-Qube substitute": ("qube_hardware", {"plant": "real_qube_servo2"}, None),
+              "real-Qube substitute, calibration given": (
+                  "qube_hardware", {"plant": "real_qube_servo2", **REAL}, None)}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--also", nargs="*", default=[], metavar="TASK=POLICY")
+    parser.add_argument("--pairs", nargs="*", default=None, metavar="TASK=POLICY",
+                        help="instead of the shipped pairs")
+    parser.add_argument("--substitute", action="store_true", help="also on the hardware substitute")
     args = parser.parse_args()
-    pairs = PAIRS + tuple(tuple(pair.split("=", 1)) for pair in args.also)
-    real = {"parameters": parameters.REAL_QUBE_SERVO2}
+    chosen = PAIRS if args.pairs is None else tuple(tuple(pair.split("=", 1)) for pair in args.pairs)
+    pairs = chosen + tuple(tuple(pair.split("=", 1)) for pair in args.also)
+    columns = {**SIMULATION, **(SUBSTITUTE if args.substitute else {})}
     started = time.perf_counter()
-    print("| task | policy | nominal model | calibrated real Qube-Servo 2 | the same, measured by its "
-          "board |\n|---|---|---|---|---|")
+    print("| task | policy | " + " | ".join(columns) + " |\n|---|---|" + "---|" * len(columns))
     for task, policy in pairs:
-        rates = [evaluate(policy, "qube", task, episodes=args.episodes, domain_kwargs=kwargs,
+        rates = [evaluate(policy, domain, task, episodes=args.episodes, domain_kwargs=kwargs,
                           randomization=randomization).success_rate
-                 for kwargs, randomization in ((None, None), (real, None), (real, MEASURED_BY_THE_BOARD))]
-        print(f"| {task} | {policy} | {rates[0]:.0%} | {rates[1]:.0%} | {rates[2]:.0%} |", flush=True)
+                 for domain, kwargs, randomization in columns.values()]
+        print(f"| {task} | {policy} | " + " | ".join(f"{rate:.0%}" for rate in rates) + " |", flush=True)
     print(f"wall time {time.perf_counter() - started:.0f} s")
 
 

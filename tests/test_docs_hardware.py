@@ -26,9 +26,10 @@ def test_the_real_board_examples_run_on_a_real_boards_code_path(wall_clock_board
     assert state["closed_cleanly"] and not state["amplifier_enabled"]
 
 
-def test_the_substitute_example_runs():
-    assert len(SUBSTITUTE_BLOCKS) == 1
-    exec(compile(SUBSTITUTE_BLOCKS[0], "docs/hardware.md substitute example", "exec"), {})
+def test_the_substitute_examples_run():
+    assert len(SUBSTITUTE_BLOCKS) == 2
+    for index, code in enumerate(SUBSTITUTE_BLOCKS):
+        exec(compile(code, f"docs/hardware.md substitute example {index}", "exec"), {})
 
 
 def test_the_commands_parse_and_name_a_real_board():

@@ -33,6 +33,15 @@ correlation time `vibration_time`, from the board's random stream seeded by
 lasting `stall_time` disables the amplifier until its enable line is toggled).
 A disabled amplifier leaves the motor open-circuit: no current, no torque.
 
+What a real Qube adds (`plant.REAL_EFFECT_PARAMETERS`, all off by default; the plant
+`real_qube_servo2` has them): the amplifier's `latency` (a written voltage acts that
+long after its write, to the substep; the amplifier's enable acts at once, so a
+disabled amplifier stops the motor without delay) and `voltage_deadzone`; the
+cable's rest angle and a slack band around it, -kc deadband(theta - rest, slack);
+the arm's breakaway torque, the friction limit of an arm that is stuck; and a
+cable that lies differently in each session: its rest and stiffness drawn from the
+board's random stream when the board opens and at each `seed`.
+
 A device that is not a Qube brings its own plant (`board_plant.BoardPlant`, e.g. a
 device with two rotors): the board then offers that plant's channels under its card type and
 keeps the clock, the task buffers, the watchdog, the encoder offsets and the
@@ -99,7 +108,7 @@ import time
 
 import numpy as np
 
-from libc.math cimport INFINITY, ceil, cos, exp, fabs, floor, isfinite, log, sin, sqrt
+from libc.math cimport INFINITY, ceil, copysign, cos, exp, fabs, floor, fmax, isfinite, log, sin, sqrt
 from libc.stdlib cimport free, llabs, malloc
 
 from qube_suite.angles import wrap_angle
@@ -224,8 +233,16 @@ cdef struct Params:
     double M22          # J_h + mp lc^2: pendulum inertia about its pivot
     double mgl          # mp g lc
     double Dr, Dp, Fr, Fp, kc
+    double Fs           # the arm's breakaway torque (N m): friction limit of a stuck arm (0: Fr)
+    double rest, slack  # the cable: rest angle and the half-width of its slack band (rad)
+    double rest_spread, kc_spread   # the cable's per-session spread: rest (rad), stiffness (relative), std
+    double latency      # between a voltage written and the amplifier applying it (s)
+    double deadzone     # the amplifier's voltage dead zone (V)
     double vibration, vibration_time   # the bench's sway on the pendulum: RMS torque (N m), correlation (s)
     double v_limit, i_limit, stall_v, stall_w, stall_t
+
+DEF DELAY_CAPACITY = 512
+
 
 cdef struct Plant:
     double x[5]         # theta, alpha (unwrapped), dtheta, dalpha, motor current; package signs
@@ -234,6 +251,12 @@ cdef struct Plant:
     double sway_step, sway_decay, sway_scale    # the sway's decay and innovation scale over a substep of
                                                 # sway_step s (0: not computed for these parameters)
     unsigned long long random_state     # splitmix64 state of the board's random stream
+    double kc, rest     # this session's cable: stiffness (N m/rad) and rest angle (rad)
+    double command      # the voltage written last that is queued to act (V, board sign)
+    double delayed      # the written voltage the amplifier acts on now, `latency` after its write (V)
+    double queue_due[DELAY_CAPACITY]    # writes waiting out the latency: when each acts (s) ...
+    double queue_volts[DELAY_CAPACITY]  # ... and its voltage (V, board sign)
+    int queue_head, queue_count
     double stall_timer
     bint stall_detected, stall_error, fault, arm_blocked, diverged
 
@@ -288,11 +311,11 @@ cdef inline double _normal(unsigned long long* state) noexcept nogil:
     return sqrt(-2.0 * log(u1)) * cos(2.0 * PI * u2)
 
 
-cdef inline void _derivative(const Params* p, const double* x, double v, bint on, double sway,
-                             double* dx) noexcept nogil:
-    """d/dt of [theta, alpha, dtheta, dalpha, i] with package voltage `v`, the amplifier `on` and the
-    bench's torque `sway` on the pendulum."""
-    cdef double i, di, s, c, m11, m12, k, f1, f2, det
+cdef inline void _derivative(const Params* p, const Plant* sp, const double* x, double v, bint on,
+                             double sway, double* dx) noexcept nogil:
+    """d/dt of [theta, alpha, dtheta, dalpha, i] with package voltage `v` at the motor, the
+    amplifier `on`, the bench's torque `sway` on the pendulum and the session's cable of `sp`."""
+    cdef double i, di, s, c, m11, m12, k, f1, f2, det, stretch
     if not on:
         i = 0.0
         di = 0.0
@@ -309,7 +332,14 @@ cdef inline void _derivative(const Params* p, const double* x, double v, bint on
     m11 = p.J0 + p.Kn * s * s + p.Ja * c * c
     m12 = -p.mLl * c
     k = p.K
-    f1 = p.kt * i - p.Dr * x[2] - p.kc * x[0] - 2.0 * k * s * c * x[2] * x[3] - p.mLl * s * x[3] * x[3]
+    stretch = x[0] - sp.rest                        # beyond the slack band the cable pulls back
+    if stretch > p.slack:
+        stretch -= p.slack
+    elif stretch < -p.slack:
+        stretch += p.slack
+    else:
+        stretch = 0.0
+    f1 = p.kt * i - p.Dr * x[2] - sp.kc * stretch - 2.0 * k * s * c * x[2] * x[3] - p.mLl * s * x[3] * x[3]
     f2 = -p.Dp * x[3] + k * s * c * x[2] * x[2] + p.mgl * s + sway
     det = m11 * p.M22 - m12 * m12
     dx[0] = x[2]
@@ -360,6 +390,8 @@ cdef void _coulomb_friction(const Params* p, double* x, const double* x_start, d
     cdef double tau[2]
     cdef int m1, m2, first1, first2
     cdef bint found = False
+    if p.Fs > f1 and x_start[2] == 0.0:                 # a stuck arm holds up to its breakaway torque
+        f1 = p.Fs
     if f1 == 0.0 and f2 == 0.0:
         return
     s = sin(x[1])
@@ -392,7 +424,7 @@ cdef void _coulomb_friction(const Params* p, double* x, const double* x_start, d
     x[1] -= 0.5 * h * (a12 * tau[0] + a22 * tau[1])
     x[2] -= a11 * tau[0] + a12 * tau[1]
     x[3] -= a12 * tau[0] + a22 * tau[1]
-    if f1 > 0.0 and fabs(tau[0]) < f1 * (1.0 - 1e-12):   # stuck
+    if f1 > 0.0 and fabs(tau[0]) < f1 * (1.0 - 1e-12):   # stuck (within the breakaway torque if it was)
         x[2] = 0.0
         x[0] = x_start[0]
     if f2 > 0.0 and fabs(tau[1]) < f2 * (1.0 - 1e-12):
@@ -410,6 +442,8 @@ cdef void _substep(const Params* p, Plant* s, double applied, bint on, double h)
     cdef double start[5]
     cdef double v = ARM_SIGN * applied
     cdef int j
+    if p.deadzone > 0.0:            # the amplifier passes nothing of the first `deadzone` volts
+        v = copysign(fmax(fabs(v) - p.deadzone, 0.0), v)
     for j in range(5):
         start[j] = s.x[j]
     if p.vibration > 0.0:           # exact discretisation of the Gauss-Markov sway over h
@@ -419,16 +453,16 @@ cdef void _substep(const Params* p, Plant* s, double applied, bint on, double h)
         s.sway = s.sway_decay * s.sway + s.sway_scale * _normal(&s.random_state)
     else:
         s.sway = 0.0
-    _derivative(p, s.x, v, on, s.sway, k1)
+    _derivative(p, s, s.x, v, on, s.sway, k1)
     for j in range(5):
         y[j] = s.x[j] + 0.5 * h * k1[j]
-    _derivative(p, y, v, on, s.sway, k2)
+    _derivative(p, s, y, v, on, s.sway, k2)
     for j in range(5):
         y[j] = s.x[j] + 0.5 * h * k2[j]
-    _derivative(p, y, v, on, s.sway, k3)
+    _derivative(p, s, y, v, on, s.sway, k3)
     for j in range(5):
         y[j] = s.x[j] + h * k3[j]
-    _derivative(p, y, v, on, s.sway, k4)
+    _derivative(p, s, y, v, on, s.sway, k4)
     for j in range(5):
         s.x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
     _coulomb_friction(p, s.x, start, h)
@@ -475,8 +509,10 @@ cdef class HIL:
     plant parameters by long name (`qube_suite.hardware.plant`), or is a device's own
     plant (a `board_plant.BoardPlant`): the board is then that device's card, with its
     channels; a board opened as a card that a device's substitute declares, without a
-    plant, makes that device's plant. `realtime=True` paces tasks by the wall clock;
-    `seed` (a non-negative integer) seeds the random stream of the bench's sway.
+    plant, makes that device's plant. `plant` may also name a plant of `plant.PLANTS`
+    (e.g. "real_qube_servo2"). `realtime=True` paces tasks by the wall clock;
+    `seed` (a non-negative integer) seeds the random stream of the bench's sway (and of the
+    session's cable, for a plant that spreads it).
     """
 
     INFINITE = -1
@@ -511,7 +547,7 @@ cdef class HIL:
             raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
         self.s.random_state = int(seed)
         self.s.sway = 0.0
-        self.plant_overrides = dict(plant or {})
+        self.plant_overrides = plant if isinstance(plant, str) else dict(plant or {})
         self.realtime_ = bool(realtime)
         self.lock = threading.Lock()
         self.h_idle = 1.0 / MIN_INTEGRATION_RATE
@@ -557,6 +593,7 @@ cdef class HIL:
             if self.device_plant is None:
                 values = plant_parameters(card_type, self.plant_overrides)
                 self._set_parameters(values)
+                self._draw_session()
                 self.plant_values = values
             self.card_type = card_type
             self.wall_origin = time.perf_counter() - self.s.t
@@ -891,13 +928,16 @@ cdef class HIL:
 
     def seed(self, seed):
         """Reseed the board's random stream (the bench's sway) and calm the sway: with the same plant
-        state, the same seed gives the same run."""
+        state, the same seed gives the same run. A plant whose cable spreads from session to session
+        (`cable_rest_spread`, `cable_stiffness_spread`) draws this session's cable from it."""
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**64:
             raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
         with self.lock:
             self._sync()
             self.s.random_state = int(seed)
             self.s.sway = 0.0
+            if self.is_open and self.device_plant is None:
+                self._draw_session()
 
     # -- fault injection (not part of Quanser's API; see the module docstring) ------------
 
@@ -993,6 +1033,12 @@ cdef class HIL:
         return dict(self.plant_values or {})
 
     @property
+    def cable(self):
+        """This session's cable: (rest angle, rad; stiffness, N m/rad), drawn when the board opened or was
+        last seeded (the plant's own unless it spreads them)."""
+        return (self.s.rest, self.s.kc)
+
+    @property
     def realtime(self):
         """True if the board follows the wall clock."""
         return bool(self.realtime_)
@@ -1015,6 +1061,10 @@ cdef class HIL:
         self.p.Dr, self.p.Dp = values["arm_damping"], values["pendulum_damping"]
         self.p.Fr, self.p.Fp = values["arm_friction"], values["pendulum_friction"]
         self.p.kc = values["cable_stiffness"]
+        self.p.rest, self.p.slack = values["cable_rest_angle"], values["cable_slack"]
+        self.p.rest_spread, self.p.kc_spread = values["cable_rest_spread"], values["cable_stiffness_spread"]
+        self.p.Fs = values["arm_breakaway"]
+        self.p.latency, self.p.deadzone = values["latency"], values["voltage_deadzone"]
         self.p.vibration, self.p.vibration_time = values["bench_vibration"], values["vibration_time"]
         self.s.sway_step = 0.0
         self.p.v_limit, self.p.i_limit = values["amplifier_voltage_limit"], values["current_limit"]
@@ -1026,7 +1076,39 @@ cdef class HIL:
         return self.out.enable[0] and not self.s.fault and not self.s.stall_error
 
     cdef inline double _applied(self) noexcept nogil:
-        return _clamp(self.out.analog[0], self.p.v_limit) if self._amplifier_on() else 0.0
+        if not self._amplifier_on():
+            return 0.0
+        return _clamp(self.s.delayed if self.p.latency > 0.0 else self.out.analog[0], self.p.v_limit)
+
+    cdef void _delay_command(self) noexcept nogil:
+        """Queue a newly written voltage to act `latency` later, and act on those now due. A queue
+        that is full (writes faster than DELAY_CAPACITY per latency) lets its oldest act early."""
+        cdef Plant* s = &self.s
+        cdef int slot
+        if self.out.analog[0] != s.command:
+            if s.queue_count == DELAY_CAPACITY:
+                s.delayed = s.queue_volts[s.queue_head]
+                s.queue_head = (s.queue_head + 1) % DELAY_CAPACITY
+                s.queue_count -= 1
+            slot = (s.queue_head + s.queue_count) % DELAY_CAPACITY
+            s.queue_due[slot] = s.t + self.p.latency
+            s.queue_volts[slot] = self.out.analog[0]
+            s.queue_count += 1
+            s.command = self.out.analog[0]
+        while s.queue_count > 0 and s.queue_due[s.queue_head] <= s.t + 1e-12:
+            s.delayed = s.queue_volts[s.queue_head]
+            s.queue_head = (s.queue_head + 1) % DELAY_CAPACITY
+            s.queue_count -= 1
+
+    cdef int _draw_session(self) except -1:
+        """This session's cable: its rest angle and stiffness drawn about the plant's from the board's
+        random stream (`cable_rest_spread`, `cable_stiffness_spread`; none drawn when both are 0)."""
+        self.s.rest, self.s.kc = self.p.rest, self.p.kc
+        if self.p.rest_spread > 0.0:
+            self.s.rest += self.p.rest_spread * _normal(&self.s.random_state)
+        if self.p.kc_spread > 0.0:
+            self.s.kc *= exp(self.p.kc_spread * _normal(&self.s.random_state))
+        return 0
 
     cdef void _encoder_positions(self, double* positions) noexcept nogil:
         positions[0] = ARM_SIGN * self.s.x[0] * COUNTS_PER_RADIAN
@@ -1258,6 +1340,8 @@ cdef class HIL:
             if self.s.diverged:
                 self.s.t += self.h
             else:
+                if self.p.latency > 0.0:
+                    self._delay_command()
                 _substep(&self.p, &self.s, self._applied(), self._amplifier_on(), self.h)
                 if not (fabs(self.s.x[2]) <= _DIVERGENCE_SPEED and fabs(self.s.x[3]) <= _DIVERGENCE_SPEED
                         and fabs(self.s.x[0]) <= 1e6 and fabs(self.s.x[1]) <= 1e6 and fabs(self.s.x[4]) <= 1e6):

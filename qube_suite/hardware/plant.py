@@ -50,6 +50,33 @@ Qube-Servo 2 gives them.
   does, instead of resting on its friction inside a count of upright. Its action
   on the arm is far below the arm's friction and is left out. 0 turns it off.
 
+A plant like a real Qube: `plant="real_qube_servo2"` (`PLANTS`; `HIL(plant=...)`,
+`QubeServo2(plant=...)`, `domain_kwargs={"plant": ...}` of `qube_hardware`) is TU Darmstadt's
+Qube-Servo 2 as calibrated from its recordings (`devices/qube/real_qube_servo2.yaml`, read when
+the board opens, so a recalibration flows into it): its parameters (rotor inertia 8x nominal,
+the motor's gain, both joints' damping and Coulomb friction, the cable's stiffness) and the
+effects it identified, by the plant parameters of `REAL_EFFECT_PARAMETERS`: `latency`,
+`voltage_deadzone`, `cable_rest_angle` and `cable_slack`. On top, what that calibration's
+model does not contain (each off, 0, in the default plant):
+
+- `cable_rest_spread` = 0.18 rad: the cable's rest is drawn anew in each session (board
+  opened or reseeded), normal with this standard deviation about the calibrated rest. The
+  encoders count from wherever the arm stands at power-up, and the cable lies differently
+  each time: fitted per session on the real recordings, its rest was -0.46 rad in the chirps,
+  -0.27 +- 0.05 in the 250 Hz swing-ups and about -0.1 at 500 Hz (docs/calibration.md), a
+  standard deviation of 0.18 rad over three sessions.
+- `cable_stiffness_spread` = 0.4: the cable's stiffness drawn per session, log-normal with
+  this spread: fitted per chirp, the linear cable's stiffness varied by +-5e-4 about
+  1.3e-3 N m/rad (+-40 %) between consecutive chirps (docs/calibration.md).
+- `arm_breakaway` = 6e-4 N m (*estimate*): a stuck arm holds up to 1.6x its sliding
+  (Coulomb) friction before it moves; the calibration fits only windows where the arm slides,
+  so it cannot see this. Static friction above Coulomb is usual for brushed DC motors and
+  their brushes (e.g. Armstrong-Helouvry, Dupont and Canudas de Wit, "A survey of models,
+  analysis tools and compensation methods for the control of machines with friction",
+  Automatica 30(7), 1994); the ratio is ours.
+
+The default plant's motor inductance and bench sway stay on as well.
+
 For `qube_servo3_usb` the motor rows are those of the Qube-Servo 3 user manual
 (table 2.2): Rm = 7.5 ohm, kt = km = 0.0422, Jm = 1.4e-6 kg m^2, Lm = 1.15 mH.
 A zero `motor_inductance` makes the current follow the voltage instantly, as in
@@ -100,6 +127,28 @@ BENCH_PARAMETERS: types.MappingProxyType[str, PlantParameter] = types.MappingPro
     {p.name: p for p in _BENCH})
 """The bench's parameters by long name: what the Qube stands on."""
 
+_REAL_EFFECTS = (
+    PlantParameter("latency", 0.0, "s", "time between a voltage written and the amplifier applying it"),
+    PlantParameter("voltage_deadzone", 0.0, "V", "the amplifier passes nothing of the first this many volts "
+                   "(a command u acts as sign(u) max(|u| - deadzone, 0))"),
+    PlantParameter("cable_rest_angle", 0.0, "rad", "arm angle at which the cable pulls nothing (the encoder "
+                   "counts from where the arm stands at power-up)"),
+    PlantParameter("cable_slack", 0.0, "rad", "half-width of the band around the cable's rest within which "
+                   "it is slack; beyond, it pulls with cable_stiffness per radian"),
+    PlantParameter("cable_rest_spread", 0.0, "rad", "standard deviation of the cable's rest from one "
+                   "session (board opened or reseeded) to the next"),
+    PlantParameter("cable_stiffness_spread", 0.0, "", "standard deviation of the log of the cable's "
+                   "stiffness from one session to the next"),
+    PlantParameter("arm_breakaway", 0.0, "N m", "friction torque a stuck arm holds before it slides "
+                   "(0 or below arm_friction: arm_friction)"),
+)
+
+REAL_EFFECT_PARAMETERS: types.MappingProxyType[str, PlantParameter] = types.MappingProxyType(
+    {p.name: p for p in _REAL_EFFECTS})
+"""Effects a real Qube shows that the default plant leaves out (all 0: off), by long name."""
+
+_MAY_BE_NEGATIVE = frozenset({"cable_rest_angle"})
+
 HARDWARE_DEFAULTS: types.MappingProxyType[str, float] = types.MappingProxyType({
     "arm_friction": 1.0e-3,
     "pendulum_friction": 5.0e-5,
@@ -116,30 +165,88 @@ BOARD_MOTORS: types.MappingProxyType[str, Mapping[str, float]] = types.MappingPr
 """Motor data that differ from the nominal (Qube-Servo 2) table, by board type."""
 
 _ZERO_ALLOWED = frozenset({"arm_damping", "pendulum_damping", "arm_friction", "pendulum_friction",
-                           "cable_stiffness", "motor_inductance", "stall_speed", "bench_vibration"})
+                           "cable_stiffness", "motor_inductance", "stall_speed", "bench_vibration",
+                           *REAL_EFFECT_PARAMETERS})
 
 
 def plant_parameters(board_type: str = "qube_servo2_usb",
-                     overrides: Mapping[str, float] | None = None) -> dict[str, float]:
-    """Every plant parameter of a `board_type` Qube, updated by `overrides`.
+                     overrides: Mapping[str, float] | str | None = None) -> dict[str, float]:
+    """Every plant parameter of a `board_type` Qube, updated by `overrides`: a mapping by long name,
+    or the name of a plant of `PLANTS`.
 
-    Raises ValueError for an unknown board type, an unknown name (listing the valid
-    ones) or a value that is not finite, negative, or zero where zero is impossible.
+    Raises ValueError for an unknown board type, an unknown plant or parameter name (listing the
+    valid ones), a named plant of another board type, or a value that is not finite, negative
+    (except a cable's rest angle), or zero where zero is impossible.
     """
     if board_type not in BOARD_MOTORS:
         raise ValueError(f"unknown board type {board_type!r}; valid: {', '.join(BOARD_MOTORS)}")
+    if isinstance(overrides, str):
+        overrides = named_plant(overrides, board_type)
     values = dict(parameters.NOMINAL)
     values.update(HARDWARE_DEFAULTS)
     values.update(BOARD_MOTORS[board_type])
-    values.update({p.name: p.default for p in _AMPLIFIER + _BENCH})
+    values.update({p.name: p.default for p in _AMPLIFIER + _BENCH + _REAL_EFFECTS})
     for name, value in (overrides or {}).items():
         if name not in values:
             raise ValueError(f"unknown plant parameter {name!r}; valid names: {', '.join(values)}")
         value = float(value)
         if not math.isfinite(value):
             raise ValueError(f"plant parameter {name!r} must be finite, got {value}")
-        if value < 0.0 or (value == 0.0 and name not in _ZERO_ALLOWED):
+        if name not in _MAY_BE_NEGATIVE and (value < 0.0 or (value == 0.0 and name not in _ZERO_ALLOWED)):
             bound = ">= 0" if name in _ZERO_ALLOWED else "> 0"
             raise ValueError(f"plant parameter {name!r} must be {bound}, got {value}")
         values[name] = value
     return values
+
+
+@dataclasses.dataclass(frozen=True)
+class NamedPlant:
+    """A plant made from a calibration of a real Qube, plus what that calibration's model leaves out.
+
+    Attributes:
+        board_type: the board the calibrated Qube sat on.
+        calibration: path of the calibration file (`qube_suite.calibration`): its parameters and its
+            identified effects (latency, dead zone, the cable's rest and slack) are read when the
+            plant is made, so a new calibration flows into it.
+        unmodelled: plant parameters the calibration does not identify, by long name (see the module).
+    """
+
+    board_type: str
+    calibration: str
+    unmodelled: Mapping[str, float]
+
+    def overrides(self) -> dict[str, float]:
+        """The plant's parameters by long name, as overrides of the default plant."""
+        effects = parameters.effects_of(self.calibration)
+        values = parameters.values_of(self.calibration)
+        values.update({plant_name: effects[name] for name, plant_name in _CALIBRATED_EFFECTS.items()
+                       if name in effects})
+        values.update(self.unmodelled)
+        return values
+
+
+_CALIBRATED_EFFECTS = {"latency_seconds": "latency", "voltage_deadzone": "voltage_deadzone",
+                       "cable_rest_angle": "cable_rest_angle", "cable_slack": "cable_slack"}
+"""A calibration's effects (`parameters.CALIBRATED_EFFECTS`) by the plant parameter that reproduces them;
+the pendulum encoder's offset (a millirad) is left out: the board's encoders count from power-up."""
+
+PLANTS: types.MappingProxyType[str, NamedPlant] = types.MappingProxyType({
+    "real_qube_servo2": NamedPlant("qube_servo2_usb", parameters.REAL_QUBE_SERVO2, types.MappingProxyType({
+        "cable_rest_spread": 0.18,
+        "cable_stiffness_spread": 0.4,
+        "arm_breakaway": 6.0e-4,
+    })),
+})
+"""Named plants: `plant="real_qube_servo2"` (see the module docstring)."""
+
+
+def named_plant(name: str, board_type: str = "qube_servo2_usb") -> dict[str, float]:
+    """The overrides of the plant `name` of `PLANTS` on a `board_type` board; ValueError for an unknown
+    name (listing the valid ones) or a plant of another board type."""
+    if name not in PLANTS:
+        raise ValueError(f"unknown plant {name!r}; named plants: {', '.join(PLANTS)} (or a mapping of plant "
+                         "parameters by long name)")
+    plant = PLANTS[name]
+    if plant.board_type != board_type:
+        raise ValueError(f"the plant {name!r} is a {plant.board_type}'s, not a {board_type}'s")
+    return plant.overrides()

@@ -317,9 +317,9 @@ class QuanserWrapper:
     the device's board type (a real board through Quanser's SDK). identifier: the
     board number. frequency (Hz): the sample rate that `action` follows.
     max_voltage (V): the clip. plant: parameters of the substitute's plant
-    (`qube_suite.hardware.plant`), or a device's own plant for it
-    (`qube_suite.hardware.board_plant.BoardPlant`). realtime: the substitute follows the wall clock
-    (default False, fast); a real board always does. watchdog_timeout (s): the
+    (`qube_suite.hardware.plant`) by long name, a named plant (`plant.PLANTS`), or a device's own
+    plant for it (`qube_suite.hardware.board_plant.BoardPlant`). realtime: the substitute follows the
+    wall clock (default False, fast); a real board always does. watchdog_timeout (s): the
     board zeroes its outputs when no action reloads it for this long.
     arm_limit (rad, or None): the largest arm angle from the arm encoder's zero.
     max_missed_samples (or None): the largest gap between two actions, in samples.
@@ -331,7 +331,7 @@ class QuanserWrapper:
 
     def __init__(self, device: Device, board: str = SIMULATED, identifier: str = "0", *,
                  frequency: float = 250.0, max_voltage: float = 10.0,
-                 plant: dict[str, float] | BoardPlant | None = None, realtime: bool | None = None,
+                 plant: dict[str, float] | str | BoardPlant | None = None, realtime: bool | None = None,
                  watchdog_timeout: float = 0.1, arm_limit: float | None = math.radians(120.0),
                  max_missed_samples: int | None = 10, max_encoder_speed: float | None = MAX_ENCODER_SPEED,
                  zero_encoders: bool = False):
@@ -396,7 +396,7 @@ class QuanserWrapper:
         self.identifier = identifier
         self.frequency = float(frequency)
         self.max_voltage = float(max_voltage)
-        self.plant = plant if plant is None or isinstance(plant, BoardPlant) else dict(plant)
+        self.plant = plant if plant is None or isinstance(plant, (BoardPlant, str)) else dict(plant)
         self.realtime = bool(realtime) if simulated else True
         self.watchdog_timeout = float(watchdog_timeout)
         self.arm_limit = arm_limit

@@ -242,7 +242,8 @@ class Physics(BoardClockAndLed, MeasuredState, control.Physics):
             `board` names, else "qube_servo2".
         board: "simulated" (the substitute) or the device's card type, "qube_servo2_usb" or
             "qube_servo3_usb" (a real Qube).
-        plant: parameters of the substitute's plant (`qube_suite.hardware.plant`).
+        plant: parameters of the substitute's plant (`qube_suite.hardware.plant`) by long name, or
+            a named plant such as "real_qube_servo2" (`plant.PLANTS`).
         realtime: pace the substitute by the wall clock (a real board always is).
         max_voltage: the wrapper's voltage clip (V).
         reset_voltage_limit: largest voltage of the reset controllers (V).
@@ -281,7 +282,7 @@ class Physics(BoardClockAndLed, MeasuredState, control.Physics):
     """The controllers `set_reset_controllers` needs (see `RESET_CONTROLLERS`)."""
 
     def __init__(self, control_frequency: float = 250.0, board: str = SIMULATED,
-                 plant: dict[str, float] | None = None, realtime: bool | None = None,
+                 plant: dict[str, float] | str | None = None, realtime: bool | None = None,
                  max_voltage: float = 10.0, reset_voltage_limit: float = DEFAULT_RESET_VOLTAGE_LIMIT,
                  reset_timeout: float = DEFAULT_RESET_TIMEOUT, identifier: str = "0",
                  device: str | None = None, check_encoders: bool = True, zero_encoders: bool = False,
@@ -732,7 +733,7 @@ def make_physics(control_frequency: float = 250.0, **options: Any) -> Physics:
     for key in ("max_voltage", "reset_voltage_limit", "reset_timeout"):
         if key in options and not (is_number(options[key]) and 0.0 < options[key] < math.inf):
             raise ValueError(f"{key} must be a positive number, got {options[key]!r}")
-    if options.get("plant") is not None and not isinstance(options["plant"], Mapping):
-        raise ValueError(f"plant must be a mapping of plant parameter names to values, "
-                         f"got {options['plant']!r}")
+    if options.get("plant") is not None and not isinstance(options["plant"], (Mapping, str)):
+        raise ValueError(f"plant must be a mapping of plant parameter names to values or a named plant "
+                         f"(qube_suite.hardware.plant.PLANTS), got {options['plant']!r}")
     return Physics(control_frequency, **options)
