@@ -45,7 +45,8 @@ class Stage:
     over `steps` steps, its history from `hyperparameters`; `exploring_starts`
     None: `imitation.EXPLORING_STARTS`; `teacher_knows_plant`: the teacher is built
     for each episode's drawn plant; `teacher_settings`: its controller's keyword
-    arguments). `task_kwargs`: the task's settings for
+    arguments; `IMITATION_SETTINGS` in its `hyperparameters`: DAgger's iterations and
+    the fit's epochs, `imitate`'s defaults if absent). `task_kwargs`: the task's settings for
     training and evaluation, e.g. a follow task's target schedule
     (`{"target": "steps"}`, keywords of `qube_suite.tasks.follow`).
     """
@@ -66,6 +67,9 @@ class Stage:
     task_kwargs: dict[str, Any] = dataclasses.field(default_factory=dict)
     backend: str = "sb3"
 
+
+IMITATION_SETTINGS = ("iterations", "epochs")
+"""Hyperparameters of an imitation stage that go to `imitation.imitate`, not to the model's PPO."""
 
 BACKENDS = ("sb3", "jax")
 """Where a stage trains: stable-baselines3 on the numpy domains, or Brax on MJX (`qube_suite.mjx`)."""
@@ -214,6 +218,12 @@ def check(recipe: Recipe) -> None:
                 baselines.make(stage.teacher, **stage.teacher_settings)
             except ValueError as error:
                 raise ValueError(f"{where}: teacher_settings: {error}") from None
+        for key in IMITATION_SETTINGS:
+            value = stage.hyperparameters.get(key)
+            if key in stage.hyperparameters and stage.teacher is None:
+                raise ValueError(f"{where}: {key!r} is a setting of an imitation stage (one with a teacher)")
+            if key in stage.hyperparameters and not (isinstance(value, int) and 1 <= value <= stage.steps):
+                raise ValueError(f"{where}: {key} must be a positive integer (at most steps), got {value!r}")
         seen.add(stage.name)
     if not recipe.stages:
         raise ValueError(f"recipe {recipe.name!r} has no stages")
@@ -262,6 +272,7 @@ def run(recipe: str | Recipe, out: str | pathlib.Path | None = None, progress: b
             continue
         if stage.teacher is not None:
             hyperparameters = dict(stage.hyperparameters)
+            dagger = {key: hyperparameters.pop(key) for key in IMITATION_SETTINGS if key in hyperparameters}
             imitation.imitate(stage.task, stage.teacher, stage.steps, seed=stage.seed,
                               randomization=stage.randomization, out=directory,
                               history=hyperparameters.pop("history", 0), hyperparameters=hyperparameters,
@@ -269,7 +280,7 @@ def run(recipe: str | Recipe, out: str | pathlib.Path | None = None, progress: b
                                  else {"exploring_starts": stage.exploring_starts}),
                               task_kwargs=dict(stage.task_kwargs),
                               teacher_knows_plant=stage.teacher_knows_plant,
-                              teacher_settings=dict(stage.teacher_settings), progress=progress)
+                              teacher_settings=dict(stage.teacher_settings), progress=progress, **dagger)
             continue
         train(stage.task, steps=stage.steps, seed=stage.seed, randomization=stage.randomization,
               out=directory, init=None if stage.init is None else root / stage.init,
