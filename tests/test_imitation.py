@@ -111,6 +111,7 @@ def test_teachers_of_a_follow_task_read_its_target_from_the_features():
     ({"exploring_starts": 1.5}, "exploring_starts must be a fraction"),
     ({"teacher_knows_plant": "yes"}, "teacher_knows_plant must be True or False"),
     ({"epochs": 0}, "epochs must be a positive integer"),
+    ({"minibatch": 512.0}, "minibatch must be a positive integer"),
     ({"teacher_settings": {"latency_steps": 2}}, "imitation sets latency_steps itself"),
     ({"teacher_settings": {"swing_up": "energy"}}, "'swingup' got an unexpected keyword argument 'swing_up'"),
     ({"randomization": "widest"}, "unknown randomization preset 'widest'"),
@@ -134,12 +135,13 @@ def test_a_tiny_imitation_fits_the_teacher_and_ppo_starts_from_it_with_the_actor
              "policy_kwargs": {"net_arch": {"pi": [32, 32], "vf": [32, 32]}, "activation_fn": "tanh",
                                "log_std_init": -1.0, "ortho_init": False}}
     run = imitation.imitate("swingup", steps=8192, iterations=2, history=2, out=tmp_path / "imitation",
-                            hyperparameters=small, epochs=3, progress=False)
+                            hyperparameters=small, epochs=3, minibatch=1024, progress=False)
     rows = list(csv.DictReader((run / "imitation.csv").read_text().splitlines()))
     assert [float(row["beta"]) for row in rows] == [1.0, 0.5]
     assert int(rows[-1]["labels"]) == 8192
     record = json.loads((run / "training.json").read_text())
     assert record["teacher"] == "swingup" and record["randomization"] == "wide" and record["epochs"] == 3
+    assert record["minibatch"] == 1024
     policy = load_policy(run / "policy.npz")
     assert policy.history == 2 and [w.shape[0] for w in policy.weights] == [32, 32, 1]
     # the fitted actor answers the teacher's first state as the teacher does, more closely than 0 V

@@ -63,7 +63,7 @@ BETA_DECAY = 0.5
 EPOCHS = 8
 """Passes over all labels so far after each iteration (`imitate`'s default)."""
 MINIBATCH = 4096
-"""Labels per gradient step."""
+"""Labels per gradient step (`imitate`'s default)."""
 LEARNING_RATE = 1e-3
 """Adam's step size for the fit."""
 EXPLORING_STARTS = 0.25
@@ -79,10 +79,10 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
             history: int = 8, exploring_starts: float = EXPLORING_STARTS,
             hyperparameters: dict[str, Any] | None = None, task_kwargs: dict[str, Any] | None = None,
             teacher_knows_plant: bool = False, teacher_settings: dict[str, Any] | None = None,
-            epochs: int = EPOCHS, progress: bool = True) -> pathlib.Path:
+            epochs: int = EPOCHS, minibatch: int = MINIBATCH, progress: bool = True) -> pathlib.Path:
     """Fit a PPO actor with `history` past steps to controller `teacher` on `task` by DAgger, over
     `steps` environment steps in `iterations` iterations, each followed by `epochs` passes of the fit
-    over all labels so far, in simulation under `randomization`, a
+    over all labels so far in steps of `minibatch` labels, in simulation under `randomization`, a
     fraction `exploring_starts` of the episodes starting anywhere; write a training run's files to
     `out` (default `runs/imitation_<task>_<seed>`) and return its directory.
 
@@ -101,8 +101,9 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
     if not (isinstance(steps, int) and isinstance(iterations, int) and steps >= iterations >= 1):
         raise ValueError(f"need integers steps >= iterations >= 1, got steps={steps!r}, "
                          f"iterations={iterations!r}")
-    if not (isinstance(epochs, int) and epochs >= 1):
-        raise ValueError(f"epochs must be a positive integer, got {epochs!r}")
+    for name, value in (("epochs", epochs), ("minibatch", minibatch)):
+        if not (isinstance(value, int) and value >= 1):
+            raise ValueError(f"{name} must be a positive integer, got {value!r}")
     teacher_settings = dict(teacher_settings or {})
     owned = {"control_frequency", "voltage_limit", "latency_steps", "parameters"} & set(teacher_settings)
     if owned:
@@ -123,8 +124,8 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
     require_rl()
     settings = {**HYPERPARAMETERS["ppo"], **(hyperparameters or {}), "history": history}
     out = pathlib.Path(out or f"runs/imitation_{task}_{seed}")
-    return _imitate(task, teacher, steps, iterations, epochs, seed, randomization, out, exploring_starts,
-                    settings, task_kwargs, teacher_knows_plant, teacher_settings, progress)
+    return _imitate(task, teacher, steps, iterations, epochs, minibatch, seed, randomization, out,
+                    exploring_starts, settings, task_kwargs, teacher_knows_plant, teacher_settings, progress)
 
 
 class Teachers:
@@ -191,8 +192,8 @@ class Teachers:
             self._controllers[world].reset()
 
 
-def _imitate(task, teacher, steps, iterations, epochs, seed, randomization, out, exploring_starts, settings,
-             task_kwargs, teacher_knows_plant, teacher_settings, progress) -> pathlib.Path:
+def _imitate(task, teacher, steps, iterations, epochs, minibatch, seed, randomization, out, exploring_starts,
+             settings, task_kwargs, teacher_knows_plant, teacher_settings, progress) -> pathlib.Path:
     import stable_baselines3
     import torch
     from stable_baselines3.common.running_mean_std import RunningMeanStd
@@ -265,7 +266,7 @@ def _imitate(task, teacher, steps, iterations, epochs, seed, randomization, out,
         inputs_seen.append(inputs)
         labels_seen.append(labels)
         loss = _fit(policy, optimizer, normalize(np.concatenate(inputs_seen)), np.concatenate(labels_seen),
-                    random, epochs)
+                    random, epochs, minibatch)
         done = (iteration + 1) * per_iteration * num_envs
         rows.append({"iteration": iteration, "beta": beta, "steps": done,
                      "labels": sum(len(x) for x in labels_seen), "loss_v2": loss,
@@ -282,7 +283,7 @@ def _imitate(task, teacher, steps, iterations, epochs, seed, randomization, out,
     record = {"algo": "ppo", "task": task, "domain": "qube", "randomization":
               randomization if isinstance(randomization, str) or randomization is None else "custom",
               "seed": seed, "num_envs": num_envs, "teacher": teacher, "iterations": iterations,
-              "epochs": epochs,
+              "epochs": epochs, "minibatch": minibatch,
               "exploring_starts": exploring_starts, "task_kwargs": task_kwargs,
               "teacher_knows_plant": teacher_knows_plant, "teacher_settings": teacher_settings,
               "hyperparameters": given,
@@ -301,15 +302,16 @@ def _imitate(task, teacher, steps, iterations, epochs, seed, randomization, out,
 
 
 def _fit(policy, optimizer, inputs: np.ndarray, labels: np.ndarray, random: np.random.Generator,
-         epochs: int) -> float:
-    """`epochs` passes of least squares of the actor's mean voltage on `labels`; the last pass's mean loss."""
+         epochs: int, minibatch: int) -> float:
+    """`epochs` passes, in steps of `minibatch` labels, of least squares of the actor's mean voltage on
+    `labels`; the last pass's mean loss."""
     import torch
 
     inputs, labels = torch.as_tensor(inputs), torch.as_tensor(labels)
     for _ in range(epochs):
         order = torch.as_tensor(random.permutation(len(labels)))
         total = 0.0
-        for batch in order.split(MINIBATCH):
+        for batch in order.split(minibatch):
             mean = policy.action_net(policy.mlp_extractor.forward_actor(inputs[batch]))[:, 0]
             loss = torch.nn.functional.mse_loss(mean, labels[batch])
             optimizer.zero_grad()

@@ -45,8 +45,8 @@ class Stage:
     over `steps` steps, its history from `hyperparameters`; `exploring_starts`
     None: `imitation.EXPLORING_STARTS`; `teacher_knows_plant`: the teacher is built
     for each episode's drawn plant; `teacher_settings`: its controller's keyword
-    arguments; `IMITATION_SETTINGS` in its `hyperparameters`: DAgger's iterations and
-    the fit's epochs, `imitate`'s defaults if absent). `task_kwargs`: the task's settings for
+    arguments; `IMITATION_SETTINGS` in its `hyperparameters`: DAgger's iterations, the
+    fit's epochs and minibatch, `imitate`'s defaults if absent). `task_kwargs`: the task's settings for
     training and evaluation, e.g. a follow task's target schedule
     (`{"target": "steps"}`, keywords of `qube_suite.tasks.follow`).
     """
@@ -68,8 +68,9 @@ class Stage:
     backend: str = "sb3"
 
 
-IMITATION_SETTINGS = ("iterations", "epochs")
-"""Hyperparameters of an imitation stage that go to `imitation.imitate`, not to the model's PPO."""
+IMITATION_SETTINGS = ("iterations", "epochs", "minibatch")
+"""Hyperparameters of an imitation stage that go to `imitation.imitate` (DAgger's iterations, the fit's
+passes and labels per gradient step), not to the model's PPO."""
 
 BACKENDS = ("sb3", "jax")
 """Where a stage trains: stable-baselines3 on the numpy domains, or Brax on MJX (`qube_suite.mjx`)."""
@@ -223,7 +224,7 @@ def check(recipe: Recipe) -> None:
             if key in stage.hyperparameters and stage.teacher is None:
                 raise ValueError(f"{where}: {key!r} is a setting of an imitation stage (one with a teacher)")
             if key in stage.hyperparameters and not (isinstance(value, int) and 1 <= value <= stage.steps):
-                raise ValueError(f"{where}: {key} must be a positive integer (at most steps), got {value!r}")
+                raise ValueError(f"{where}: {key} must be a positive integer, at most steps, got {value!r}")
         seen.add(stage.name)
     if not recipe.stages:
         raise ValueError(f"recipe {recipe.name!r} has no stages")
