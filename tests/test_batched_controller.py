@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from qube_suite import baselines
+from qube_suite.conventions import ObservationLayout
 from qube_suite.devices.qube.controllers.batched import BatchedSwingup
 from qube_suite.wrappers.vector_env import QubeVectorEnv
 
@@ -60,3 +61,15 @@ def test_a_batch_refuses_what_it_cannot_run():
     with pytest.raises(ValueError, match=r"shape \(2, 4\)"):
         BatchedSwingup(baselines.make("swingup"), 2)(np.zeros((3, 4)))
 
+
+
+def test_rows_of_trig_observations_split_as_each_observation_does():
+    layout = ObservationLayout("trig", target=True)
+    rows = np.random.default_rng(1).uniform(-1.0, 1.0, (5, layout.size))
+    states, targets = layout.split_rows(rows)
+    for row, state, target in zip(rows, states, targets, strict=True):
+        expected_state, expected_target = layout.split(row)
+        np.testing.assert_allclose(state, expected_state, rtol=0, atol=1e-15)
+        assert target == expected_target
+    with pytest.raises(ValueError, match=r"shape \(worlds, 7\)"):
+        layout.split_rows(rows[:, :6])
