@@ -79,3 +79,15 @@ class ObservationLayout:
         if self.mode == "trig":
             flat = np.concatenate([[math.atan2(flat[1], flat[0]), math.atan2(flat[3], flat[2])], flat[4:]])
         return flat[:4].astype(np.float64), 0.0 if target is None else float(flat[4])
+
+    def split_rows(self, observations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """`split` for each row of a batch of flat observations: (states, rows [theta, alpha, dtheta,
+        dalpha] (rad, rad/s); arm targets (rad), zeros without a target)."""
+        rows = np.asarray(observations, dtype=np.float64)
+        if rows.ndim != 2 or rows.shape[1] != self.size:
+            raise ValueError(f"not rows of layout {self}: shape (worlds, {self.size}) expected, "
+                             f"got {rows.shape}")
+        if self.mode == "trig":
+            rows = np.column_stack([np.arctan2(rows[:, 1], rows[:, 0]), np.arctan2(rows[:, 3], rows[:, 2]),
+                                    rows[:, 4:]])
+        return rows[:, :4], rows[:, 4] if self.target else np.zeros(len(rows))

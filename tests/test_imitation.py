@@ -48,6 +48,24 @@ def test_teachers_label_each_world_and_restart_the_ones_asked():
     assert teachers.labels(np.array([trig(NEXT)] * 2))[1] == pytest.approx(fresh)  # world 1 starts afresh
 
 
+def test_the_swingup_teacher_is_designed_once_for_all_worlds(monkeypatch):
+    import scipy.linalg
+
+    solved = []
+    solve = scipy.linalg.solve_discrete_are
+    monkeypatch.setattr(scipy.linalg, "solve_discrete_are", lambda *args: solved.append(1) or solve(*args))
+    baselines.make("swingup")
+    once = len(solved)  # the LQR's and the observer's Riccati equations
+    solved.clear()
+    teachers = imitation.Teachers("swingup", 64, 3.0)
+    assert len(solved) == once
+    labels = teachers.labels(np.array([trig(UPRIGHT)] * 64))
+    assert labels.shape == (64,) and np.all(labels == labels[0])
+    solved.clear()
+    imitation.Teachers("swingup", 3, 3.0, knows_plant=True)  # each world its own plant: one design each
+    assert len(solved) == 3 * once
+
+
 def test_teachers_that_know_the_plant_are_built_for_each_episodes_draw():
     heavy = {"parameters": {"pendulum_mass": 0.032, "motor_resistance": 10.0},
              "effects": {"action_delay": {"steps": np.int64(1)}}}
@@ -92,6 +110,8 @@ def test_teachers_of_a_follow_task_read_its_target_from_the_features():
     ({"steps": 5, "iterations": 10}, "steps >= iterations >= 1"),
     ({"exploring_starts": 1.5}, "exploring_starts must be a fraction"),
     ({"teacher_knows_plant": "yes"}, "teacher_knows_plant must be True or False"),
+    ({"epochs": 0}, "epochs must be a positive integer"),
+    ({"minibatch": 512.0}, "minibatch must be a positive integer"),
     ({"teacher_settings": {"latency_steps": 2}}, "imitation sets latency_steps itself"),
     ({"teacher_settings": {"swing_up": "energy"}}, "'swingup' got an unexpected keyword argument 'swing_up'"),
     ({"randomization": "widest"}, "unknown randomization preset 'widest'"),
@@ -115,12 +135,13 @@ def test_a_tiny_imitation_fits_the_teacher_and_ppo_starts_from_it_with_the_actor
              "policy_kwargs": {"net_arch": {"pi": [32, 32], "vf": [32, 32]}, "activation_fn": "tanh",
                                "log_std_init": -1.0, "ortho_init": False}}
     run = imitation.imitate("swingup", steps=8192, iterations=2, history=2, out=tmp_path / "imitation",
-                            hyperparameters=small, progress=False)
+                            hyperparameters=small, epochs=3, minibatch=1024, progress=False)
     rows = list(csv.DictReader((run / "imitation.csv").read_text().splitlines()))
     assert [float(row["beta"]) for row in rows] == [1.0, 0.5]
     assert int(rows[-1]["labels"]) == 8192
     record = json.loads((run / "training.json").read_text())
-    assert record["teacher"] == "swingup" and record["randomization"] == "wide"
+    assert record["teacher"] == "swingup" and record["randomization"] == "wide" and record["epochs"] == 3
+    assert record["minibatch"] == 1024
     policy = load_policy(run / "policy.npz")
     assert policy.history == 2 and [w.shape[0] for w in policy.weights] == [32, 32, 1]
     # the fitted actor answers the teacher's first state as the teacher does, more closely than 0 V

@@ -53,6 +53,9 @@ def test_every_shipped_policy_has_a_recipe_that_matches_its_training_record():
     ({"teacher": "juggler"}, "unknown teacher 'juggler'"),
     ({"teacher": "swingup", "keep": "best_policy.npz"}, "an imitation stage starts afresh"),
     ({"teacher_knows_plant": True}, "teacher_knows_plant and teacher_settings need a teacher"),
+    ({"hyperparameters": {"epochs": 2}}, "'epochs' is a setting of an imitation stage"),
+    ({"teacher": "swingup", "hyperparameters": {"iterations": 0}}, "iterations must be a positive integer"),
+    ({"teacher": "swingup", "hyperparameters": {"epochs": 2.5}}, "epochs must be a positive integer"),
     ({"teacher": "ilqr", "teacher_settings": {"swing_up": "juggle"}}, "teacher_settings: unknown swing_up"),
     ({"task": "swingup_follow", "task_kwargs": {"target": "zigzag"}}, "unknown target schedule 'zigzag'"),
     ({"task": "swingup_follow", "task_kwargs": {"random": 3}}, "drop 'random'"),
@@ -174,16 +177,17 @@ def test_train_with_a_task_alone_runs_its_recipe_and_with_options_one_run(monkey
 def test_a_stage_trains_and_imitates_with_its_task_settings(monkeypatch, tmp_path, capsys):
     steps = {"target": "steps", "target_hold_time": 3.0}
     recipe = Recipe("slow", (Stage("teach", "swingup_follow", 100, 1, teacher="follow", task_kwargs=steps,
-                                   teacher_knows_plant=True),
+                                   teacher_knows_plant=True, hyperparameters={"epochs": 3, "iterations": 2}),
                              Stage("learn", "swingup_follow", 100, 1, init="teach",
                                    task_kwargs={"target": "sine"})), "tracks")
     calls = {}
     monkeypatch.setattr(imitation, "imitate", lambda task, teacher, steps, **kwargs: calls.setdefault(
-        "imitate", (kwargs["task_kwargs"], kwargs["teacher_knows_plant"])))
+        "imitate", (kwargs["task_kwargs"], kwargs["teacher_knows_plant"], kwargs["epochs"],
+                    kwargs["iterations"], kwargs["hyperparameters"])))
     monkeypatch.setattr(training, "train", lambda task, **kwargs: calls.setdefault(
         "train", kwargs["task_kwargs"]))
     recipes.run(recipe, out=tmp_path, progress=False)
-    assert calls == {"imitate": (steps, True), "train": {"target": "sine"}}
+    assert calls == {"imitate": (steps, True, 3, 2, {}), "train": {"target": "sine"}}  # DAgger's, not PPO's
     monkeypatch.setitem(RECIPES, "slow", recipe)
     row = next(line for line in recipes.listing().splitlines() if line.startswith("| slow |"))
     assert "swingup_follow 0.0001 M imitating follow built for each plant (target=steps, " \

@@ -54,14 +54,16 @@ import numpy as np
 from qube_suite import baselines, suite
 from qube_suite import randomization as randomization_configs
 from qube_suite.conventions import ObservationLayout
+from qube_suite.devices.qube.controllers import SwingupController
+from qube_suite.devices.qube.controllers.batched import BatchedSwingup
 from qube_suite.training.hyperparameters import HYPERPARAMETERS
 
 BETA_DECAY = 0.5
 """The teacher's share of the voltages sent falls by this much per iteration after the first (to 0)."""
 EPOCHS = 8
-"""Passes over all labels so far after each iteration."""
+"""Passes over all labels so far after each iteration (`imitate`'s default)."""
 MINIBATCH = 4096
-"""Labels per gradient step."""
+"""Labels per gradient step (`imitate`'s default)."""
 LEARNING_RATE = 1e-3
 """Adam's step size for the fit."""
 EXPLORING_STARTS = 0.25
@@ -77,9 +79,10 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
             history: int = 8, exploring_starts: float = EXPLORING_STARTS,
             hyperparameters: dict[str, Any] | None = None, task_kwargs: dict[str, Any] | None = None,
             teacher_knows_plant: bool = False, teacher_settings: dict[str, Any] | None = None,
-            progress: bool = True) -> pathlib.Path:
+            epochs: int = EPOCHS, minibatch: int = MINIBATCH, progress: bool = True) -> pathlib.Path:
     """Fit a PPO actor with `history` past steps to controller `teacher` on `task` by DAgger, over
-    `steps` environment steps in `iterations` iterations, in simulation under `randomization`, a
+    `steps` environment steps in `iterations` iterations, each followed by `epochs` passes of the fit
+    over all labels so far in steps of `minibatch` labels, in simulation under `randomization`, a
     fraction `exploring_starts` of the episodes starting anywhere; write a training run's files to
     `out` (default `runs/imitation_<task>_<seed>`) and return its directory.
 
@@ -98,6 +101,9 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
     if not (isinstance(steps, int) and isinstance(iterations, int) and steps >= iterations >= 1):
         raise ValueError(f"need integers steps >= iterations >= 1, got steps={steps!r}, "
                          f"iterations={iterations!r}")
+    for name, value in (("epochs", epochs), ("minibatch", minibatch)):
+        if not (isinstance(value, int) and value >= 1):
+            raise ValueError(f"{name} must be a positive integer, got {value!r}")
     teacher_settings = dict(teacher_settings or {})
     owned = {"control_frequency", "voltage_limit", "latency_steps", "parameters"} & set(teacher_settings)
     if owned:
@@ -118,8 +124,8 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
     require_rl()
     settings = {**HYPERPARAMETERS["ppo"], **(hyperparameters or {}), "history": history}
     out = pathlib.Path(out or f"runs/imitation_{task}_{seed}")
-    return _imitate(task, teacher, steps, iterations, seed, randomization, out, exploring_starts, settings,
-                    task_kwargs, teacher_knows_plant, teacher_settings, progress)
+    return _imitate(task, teacher, steps, iterations, epochs, minibatch, seed, randomization, out,
+                    exploring_starts, settings, task_kwargs, teacher_knows_plant, teacher_settings, progress)
 
 
 class Teachers:
@@ -128,7 +134,8 @@ class Teachers:
 
     `knows_plant`: each episode's controller is built for the world's drawn plant (its reset info's
     `"parameters"` and `"effects"`' action delay); otherwise for the nominal Qube with
-    `TEACHER_LATENCY_STEPS`.
+    `TEACHER_LATENCY_STEPS`, and the `swingup` controller is designed once (its Riccati equations
+    solved once) and labels all worlds at once (`controllers.batched.BatchedSwingup`).
     """
 
     def __init__(self, name: str, worlds: int, voltage_limit: float, target: bool = False,
@@ -136,7 +143,13 @@ class Teachers:
         self._name, self._voltage_limit, self._knows_plant = name, voltage_limit, knows_plant
         self._settings = dict(settings or {})
         self._target = target
-        self._controllers = [self._build({}) for _ in range(worlds)]
+        self._batch: BatchedSwingup | None = None
+        design = self._build({})
+        if not knows_plant and type(design) is SwingupController and not target:
+            self._batch = BatchedSwingup(design, worlds)
+            self._controllers = []
+        else:  # each its own: some controllers (ilqr's compiled kernel) cannot be copied
+            self._controllers = [design, *(self._build({}) for _ in range(worlds - 1))]
 
     def _build(self, drawn: dict[str, Any]):
         """A controller for the nominal Qube, or (`knows_plant`) for the plant in reset info `drawn`."""
@@ -154,25 +167,33 @@ class Teachers:
         trig observation's six, theta - theta_target, theta_target)."""
         if self._target:  # the trig observation: the six, then theta_target
             features = np.column_stack([features[:, :6], features[:, 7]])
+        if self._batch is not None:
+            return self._batch(ObservationLayout("trig").split_rows(features)[0])
         pairs = zip(self._controllers, features, strict=True)
         return np.array([controller(row) for controller, row in pairs])
 
     def sent(self, volts: np.ndarray) -> None:
         """Each world's voltage (V) really sent in answer to the features last labelled."""
+        if self._batch is not None:
+            self._batch.sent(volts)
+            return
         for controller, value in zip(self._controllers, volts, strict=True):
             controller.sent(float(value))
 
     def reset(self, worlds: np.ndarray, reset_infos: list[dict[str, Any]]) -> None:
         """Start new episodes in the worlds of the boolean mask `worlds`, whose reset infos (what each
         world drew) are `reset_infos` (one per world, as SB3's `VecEnv.reset_infos`)."""
+        if self._batch is not None:
+            self._batch.reset(worlds)
+            return
         for world in np.flatnonzero(worlds):
             if self._knows_plant:
                 self._controllers[world] = self._build(reset_infos[world])
             self._controllers[world].reset()
 
 
-def _imitate(task, teacher, steps, iterations, seed, randomization, out, exploring_starts, settings,
-             task_kwargs, teacher_knows_plant, teacher_settings, progress) -> pathlib.Path:
+def _imitate(task, teacher, steps, iterations, epochs, minibatch, seed, randomization, out, exploring_starts,
+             settings, task_kwargs, teacher_knows_plant, teacher_settings, progress) -> pathlib.Path:
     import stable_baselines3
     import torch
     from stable_baselines3.common.running_mean_std import RunningMeanStd
@@ -245,7 +266,7 @@ def _imitate(task, teacher, steps, iterations, seed, randomization, out, explori
         inputs_seen.append(inputs)
         labels_seen.append(labels)
         loss = _fit(policy, optimizer, normalize(np.concatenate(inputs_seen)), np.concatenate(labels_seen),
-                    random)
+                    random, epochs, minibatch)
         done = (iteration + 1) * per_iteration * num_envs
         rows.append({"iteration": iteration, "beta": beta, "steps": done,
                      "labels": sum(len(x) for x in labels_seen), "loss_v2": loss,
@@ -262,6 +283,7 @@ def _imitate(task, teacher, steps, iterations, seed, randomization, out, explori
     record = {"algo": "ppo", "task": task, "domain": "qube", "randomization":
               randomization if isinstance(randomization, str) or randomization is None else "custom",
               "seed": seed, "num_envs": num_envs, "teacher": teacher, "iterations": iterations,
+              "epochs": epochs, "minibatch": minibatch,
               "exploring_starts": exploring_starts, "task_kwargs": task_kwargs,
               "teacher_knows_plant": teacher_knows_plant, "teacher_settings": teacher_settings,
               "hyperparameters": given,
@@ -279,15 +301,17 @@ def _imitate(task, teacher, steps, iterations, seed, randomization, out, explori
     return out
 
 
-def _fit(policy, optimizer, inputs: np.ndarray, labels: np.ndarray, random: np.random.Generator) -> float:
-    """`EPOCHS` passes of least squares of the actor's mean voltage on `labels`; the last pass's mean loss."""
+def _fit(policy, optimizer, inputs: np.ndarray, labels: np.ndarray, random: np.random.Generator,
+         epochs: int, minibatch: int) -> float:
+    """`epochs` passes, in steps of `minibatch` labels, of least squares of the actor's mean voltage on
+    `labels`; the last pass's mean loss."""
     import torch
 
     inputs, labels = torch.as_tensor(inputs), torch.as_tensor(labels)
-    for _ in range(EPOCHS):
+    for _ in range(epochs):
         order = torch.as_tensor(random.permutation(len(labels)))
         total = 0.0
-        for batch in order.split(MINIBATCH):
+        for batch in order.split(minibatch):
             mean = policy.action_net(policy.mlp_extractor.forward_actor(inputs[batch]))[:, 0]
             loss = torch.nn.functional.mse_loss(mean, labels[batch])
             optimizer.zero_grad()
