@@ -118,10 +118,6 @@ SMALL_PPO_STEPS = {"init_log_std": -4.0, "learning_rate": 3e-5, "clip_range": 0.
 """PPO after imitation: small exploration noise (gSDE log-std -4, the imitation's -1) and small
 steps; with -1 or -2, or a learning rate of 1e-4, it undoes the imitated feedback."""
 
-QUICK_FIT = {"epochs": 2, "minibatch": 1024}
-"""The fit of `swingup_adaptive`'s imitation: after each iteration 2 passes over the labels in steps of
-1024, which fit about as closely as `imitation`'s default 8 passes in steps of 4096 (docs/transfer.md)."""
-
 GENTLE_ILQR = {"swing_up": "energy", "reference_speed": 2.0, "cost": {"lean_limit": math.radians(8.0)}}
 """`ilqr` as a teacher of steps: `swingup`'s energy swing-up (the planned one has not been learnt), a
 2 rad/s reference ramp and an 8 degree lean limit, which keep the pendulum up under `sim2real`."""
@@ -152,12 +148,10 @@ RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
                      Stage("rotor", "rotor", 1_500_000, 1.2, init="spin", keep="best_policy.npz")),
            "ppo:rotor: 60 revolutions in simulation, 17 on the substitute, 100 % success"),
     Recipe("swingup_adaptive", (
-        Stage("imitation", "swingup", 1_000_000, 2, teacher="swingup", randomization="wide",
-              hyperparameters={"history": 8, "policy_kwargs": IMITATION_ACTOR, **QUICK_FIT}),
-        # PPO kept the imitation of 2 M steps; from this quicker one its last evaluations fell (1837 to 1490,
-        # the final actor 0 % on the nominal Qube), so the stage keeps its best (docs/transfer.md)
+        Stage("imitation", "swingup", 2_000_000, 10, teacher="swingup", randomization="wide",
+              hyperparameters={"history": 8, "policy_kwargs": IMITATION_ACTOR}),
         Stage("ppo", "swingup", 1_000_000, 1.3, init="imitation", randomization="wide",
-              hyperparameters={"history": 8, **SMALL_PPO_STEPS}, keep="best_policy.npz")),
+              hyperparameters={"history": 8, **SMALL_PPO_STEPS})),
         "ppo:swingup_adaptive: 100 % success on each of 10 held-out plants (benchmarks/held_out.py)"),
     Recipe("swingup_follow_sine", (
         # the follow controller's tracking, imitated on the sine: PPO on the task's reward alone

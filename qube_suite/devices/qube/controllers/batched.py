@@ -140,27 +140,8 @@ class BatchedSwingup:
         return np.array([state[0], _wrap(state[1]), state[2], state[3]])
 
     def _advance(self, state: np.ndarray, volts: np.ndarray) -> np.ndarray:
-        h = self._substep
-        bias_theta, bias_alpha = self._bias
-        accelerations = self._accelerations
-        theta, alpha, dtheta, dalpha = state
-        for _ in range(self._substeps):
-            a1, b1 = accelerations(alpha, dtheta, dalpha, volts)
-            a1, b1 = a1 + bias_theta, b1 + bias_alpha
-            v2, w2 = dtheta + 0.5 * h * a1, dalpha + 0.5 * h * b1
-            a2, b2 = accelerations(alpha + 0.5 * h * dalpha, v2, w2, volts)
-            a2, b2 = a2 + bias_theta, b2 + bias_alpha
-            v3, w3 = dtheta + 0.5 * h * a2, dalpha + 0.5 * h * b2
-            a3, b3 = accelerations(alpha + 0.5 * h * w2, v3, w3, volts)
-            a3, b3 = a3 + bias_theta, b3 + bias_alpha
-            v4, w4 = dtheta + h * a3, dalpha + h * b3
-            a4, b4 = accelerations(alpha + h * w3, v4, w4, volts)
-            a4, b4 = a4 + bias_theta, b4 + bias_alpha
-            theta = theta + h / 6.0 * (dtheta + 2.0 * v2 + 2.0 * v3 + v4)
-            alpha = alpha + h / 6.0 * (dalpha + 2.0 * w2 + 2.0 * w3 + w4)
-            dtheta = dtheta + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-            dalpha = dalpha + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-        return np.array([theta, alpha, dtheta, dalpha])
+        return np.array(observer_law.advance(self._accelerations, self._bias, state, volts, self._substep,
+                                             self._substeps))
 
     # The model (model.RigidBodyModel), over arrays.
 
@@ -169,16 +150,7 @@ class BatchedSwingup:
         return self.model.base_inertia + self.model.swing_inertia * s * s
 
     def _accelerations(self, alpha, dtheta, dalpha, volts):
-        model = self.model
-        s, c = np.sin(alpha), np.cos(alpha)
-        swing = model.swing_inertia * s * c
-        m11, m12, m22 = self._arm_inertia(alpha), -model.coupling * c, model.pendulum_inertia
-        torque = model.torque_per_volt * (volts - model.back_emf * dtheta)
-        r1 = (torque - model.arm_damping * dtheta - 2.0 * swing * dtheta * dalpha
-              - model.coupling * s * dalpha * dalpha)
-        r2 = swing * dtheta * dtheta + model.gravity_torque * s - model.pendulum_damping * dalpha
-        det = m11 * m22 - m12 * m12
-        return (m22 * r1 - m12 * r2) / det, (m11 * r2 - m12 * r1) / det
+        return self.model.accelerations_at(np.sin(alpha), np.cos(alpha), dtheta, dalpha, volts)
 
     def _energy(self, alpha, dtheta, dalpha):
         model = self.model

@@ -103,9 +103,14 @@ class RigidBodyModel:
     def accelerations(self, alpha: float, dtheta: float, dalpha: float, volts: float) -> tuple[float, float]:
         """(theta'', alpha'') (rad/s^2) at pendulum angle `alpha` (rad), speeds `dtheta`, `dalpha`
         (rad/s) and motor voltage `volts` (V): the equations above solved for them."""
-        s, c = math.sin(alpha), math.cos(alpha)
+        return self.accelerations_at(math.sin(alpha), math.cos(alpha), dtheta, dalpha, volts)
+
+    def accelerations_at(self, s, c, dtheta, dalpha, volts):
+        """`accelerations` given the sine `s` and cosine `c` of the pendulum angle: floats, or arrays
+        of many worlds."""
         swing = self.swing_inertia * s * c
-        m11, m12, m22 = self.arm_inertia(alpha), -self.coupling * c, self.pendulum_inertia
+        m11 = self.base_inertia + self.swing_inertia * s * s
+        m12, m22 = -self.coupling * c, self.pendulum_inertia
         torque = self.torque_per_volt * (volts - self.back_emf * dtheta)
         r1 = (torque - self.arm_damping * dtheta - 2.0 * swing * dtheta * dalpha
               - self.coupling * s * dalpha * dalpha)

@@ -64,6 +64,32 @@ measurement: no unmodelled torque moves the Qube so far in a sample; it means a 
 episode without `reset()`."""
 
 
+def advance(accelerations, bias, state, volts, substep: float, substeps: int) -> tuple:
+    """`state` (theta, alpha, dtheta, dalpha: floats, or arrays of worlds) `substeps` RK4 steps of
+    `substep` seconds later under `volts` (V), the accelerations `accelerations(alpha, dtheta, dalpha,
+    volts)` plus the unknown ones `bias` (rad/s^2); the accelerations do not depend on theta."""
+    h = substep
+    bias_theta, bias_alpha = bias
+    theta, alpha, dtheta, dalpha = state
+    for _ in range(substeps):
+        a1, b1 = accelerations(alpha, dtheta, dalpha, volts)
+        a1, b1 = a1 + bias_theta, b1 + bias_alpha
+        v2, w2 = dtheta + 0.5 * h * a1, dalpha + 0.5 * h * b1
+        a2, b2 = accelerations(alpha + 0.5 * h * dalpha, v2, w2, volts)
+        a2, b2 = a2 + bias_theta, b2 + bias_alpha
+        v3, w3 = dtheta + 0.5 * h * a2, dalpha + 0.5 * h * b2
+        a3, b3 = accelerations(alpha + 0.5 * h * w2, v3, w3, volts)
+        a3, b3 = a3 + bias_theta, b3 + bias_alpha
+        v4, w4 = dtheta + h * a3, dalpha + h * b3
+        a4, b4 = accelerations(alpha + h * w3, v4, w4, volts)
+        a4, b4 = a4 + bias_theta, b4 + bias_alpha
+        theta = theta + h / 6.0 * (dtheta + 2.0 * v2 + 2.0 * v3 + v4)
+        alpha = alpha + h / 6.0 * (dalpha + 2.0 * w2 + 2.0 * w3 + w4)
+        dtheta = dtheta + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+        dalpha = dalpha + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
+    return theta, alpha, dtheta, dalpha
+
+
 def kalman_gain(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Steady-state Kalman gain L (n x m) for x' = a x + w, y = c x + v, cov(w) = q, cov(v) = r.
 
@@ -157,26 +183,6 @@ class StateObserver:
         self._voltages[-1] = float(volts)
 
     def _advance(self, state: list[float], volts: float) -> list[float]:
-        """`state` one control period later under `volts` (V) and the unknown accelerations: RK4 of
-        the second-order equations (the accelerations do not depend on theta)."""
-        h = self._substep
-        bias_theta, bias_alpha = self._bias
-        accelerations = self.model.accelerations
-        theta, alpha, dtheta, dalpha = state
-        for _ in range(self._substeps):
-            a1, b1 = accelerations(alpha, dtheta, dalpha, volts)
-            a1, b1 = a1 + bias_theta, b1 + bias_alpha
-            v2, w2 = dtheta + 0.5 * h * a1, dalpha + 0.5 * h * b1
-            a2, b2 = accelerations(alpha + 0.5 * h * dalpha, v2, w2, volts)
-            a2, b2 = a2 + bias_theta, b2 + bias_alpha
-            v3, w3 = dtheta + 0.5 * h * a2, dalpha + 0.5 * h * b2
-            a3, b3 = accelerations(alpha + 0.5 * h * w2, v3, w3, volts)
-            a3, b3 = a3 + bias_theta, b3 + bias_alpha
-            v4, w4 = dtheta + h * a3, dalpha + h * b3
-            a4, b4 = accelerations(alpha + h * w3, v4, w4, volts)
-            a4, b4 = a4 + bias_theta, b4 + bias_alpha
-            theta += h / 6.0 * (dtheta + 2.0 * v2 + 2.0 * v3 + v4)
-            alpha += h / 6.0 * (dalpha + 2.0 * w2 + 2.0 * w3 + w4)
-            dtheta += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-            dalpha += h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-        return [theta, alpha, dtheta, dalpha]
+        """`state` one control period later under `volts` (V) and the unknown accelerations."""
+        return list(advance(self.model.accelerations, self._bias, state, volts, self._substep,
+                            self._substeps))
