@@ -155,7 +155,8 @@ class BoardLifecycle:
     closing it for good, for a device whose domain keeps no other resource. Expects `qube` (the
     board's wrapper, `qube_suite.hardware.quanser.QuanserWrapper`), `_effects`
     (`qube_suite.domains.effects.Effects`), `_voltage` (the commanded voltage, V), `_sample(volts)`
-    (one sample writing `volts`), `_closed` and `_twin` (its digital twin, a MuJoCo physics, or
+    (one sample writing `volts`), `_start_sampling()` (an episode's first sample, at 0 V, and the
+    commanded voltage set to 0), `_closed` and `_twin` (its digital twin, a MuJoCo physics, or
     None) set by the physics."""
 
     def step(self, nstep: int = 1) -> None:
@@ -164,6 +165,21 @@ class BoardLifecycle:
         try:
             for _ in range(nstep):
                 self._sample(volts)
+        except BaseException:
+            self._stop()
+            raise
+
+    def reset(self) -> None:
+        """Get the board ready for an episode: open it the first time, else wake it from idle; then
+        the device's first sample at 0 V (`_start_sampling`)."""
+        if self._closed:
+            raise RuntimeError("this hardware environment was closed and its board released; make a new one")
+        try:
+            if not self.qube.is_open:
+                self.qube.open()
+            else:
+                self.qube.resume()
+            self._start_sampling()
         except BaseException:
             self._stop()
             raise

@@ -265,19 +265,9 @@ class Physics(BoardClockAndLed, BoardLifecycle, control.Physics):
 
     # -- episodes -----------------------------------------------------------------------------
 
-    def reset(self) -> None:
-        """Get the board ready for an episode: open it the first time, else wake it from idle."""
-        if self._closed:
-            raise RuntimeError("this hardware environment was closed and its board released; make a new one")
-        try:
-            if not self.qube.is_open:
-                self.qube.open()
-            else:
-                self.qube.resume()
-            self._sample(np.zeros(2))
-        except BaseException:
-            self._stop()
-            raise
+    def _start_sampling(self) -> None:
+        """An episode's first sample, at 0 V on both motors."""
+        self._sample(np.zeros(2))
         self._voltage = np.zeros(2)
 
     def after_reset(self) -> None:

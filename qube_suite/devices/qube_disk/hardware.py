@@ -155,20 +155,10 @@ class Physics(BoardClockAndLed, BoardLifecycle, control.Physics):
 
     # -- episodes -----------------------------------------------------------------------------
 
-    def reset(self) -> None:
-        """Get the board ready for an episode: open it the first time, else wake it from idle."""
-        if self._closed:
-            raise RuntimeError("this hardware environment was closed and its board released; make a new one")
-        try:
-            if not self.qube.is_open:
-                self.qube.open()
-            else:
-                self.qube.resume()
-            self._filter.reset()
-            self._sample(0.0)
-        except BaseException:
-            self._stop()
-            raise
+    def _start_sampling(self) -> None:
+        """An episode's first sample, at 0 V, the velocity filter started again."""
+        self._filter.reset()
+        self._sample(0.0)
         self._voltage = 0.0
 
     def after_reset(self) -> None:
