@@ -56,7 +56,8 @@ class Stage:
     (`{"target": "steps"}`, keywords of `qube_suite.tasks.follow`). `calibration`: a calibration
     file (`qube_suite.calibration`) to train for, instead of a `randomization`: the stage's PPO run
     draws its worlds from the randomization centred on that Qube (`calibrated.randomization_for`:
-    its parameters, latency and dead zone), fine-tuning the stage it starts from (`init`, required).
+    its parameters, latency and dead zone), fine-tuning the stage it starts from (`init`), or
+    imitating its `teacher` there.
     """
 
     name: str
@@ -250,16 +251,16 @@ def check(recipe: Recipe) -> None:
 
 def _check_calibration(stage: Stage, where: str) -> None:
     """ValueError unless `stage` can train under its calibration: a calibration file, no randomization
-    beside it, and an earlier stage to fine-tune (no teacher)."""
+    beside it, and an earlier stage to fine-tune or a teacher to imitate."""
     try:
         calibration_file.load(stage.calibration)
     except (ValueError, TypeError) as error:
         raise ValueError(f"{where}: calibration: {error}") from None
     if stage.randomization is not None:
         raise ValueError(f"{where}: give a randomization or a calibration to centre one on, not both")
-    if stage.init is None or stage.teacher is not None:
-        raise ValueError(f"{where}: a calibrated stage fine-tunes an earlier stage with PPO: give init, "
-                         "no teacher")
+    if stage.init is None and stage.teacher is None:  # `train` would fine-tune a shipped policy
+        raise ValueError(f"{where}: a calibrated PPO stage fine-tunes an earlier stage: give init "
+                         "(or a teacher to imitate)")
 
 
 def finished(directory: pathlib.Path, backend: str = "sb3") -> bool:
@@ -309,7 +310,8 @@ def run(recipe: str | Recipe, out: str | pathlib.Path | None = None, progress: b
             hyperparameters = dict(stage.hyperparameters)
             dagger = {key: hyperparameters.pop(key) for key in IMITATION_SETTINGS if key in hyperparameters}
             imitation.imitate(stage.task, stage.teacher, stage.steps, seed=stage.seed,
-                              randomization=stage.randomization, out=directory,
+                              randomization=stage.randomization, calibration=stage.calibration,
+                              out=directory,
                               history=hyperparameters.pop("history", 0), hyperparameters=hyperparameters,
                               **({} if stage.exploring_starts is None
                                  else {"exploring_starts": stage.exploring_starts}),
