@@ -1,8 +1,8 @@
 """Recipes: how each shipped policy is trained, as data, run in one command.
 
     from qube_suite.training import recipes
-    recipes.RECIPES["swingup"].steps             # 7500000 over three stages
-    recipes.run("swingup", out="runs/swingup")   # runs/swingup/<stage>/..., resumable
+    recipes.RECIPES["swingup_follow"].steps      # 9500000 over four stages
+    recipes.run("swingup_follow", out="runs/swingup_follow")   # runs/swingup_follow/<stage>/..., resumable
 
 A recipe is a chain of training runs (`Stage`), each starting from an earlier
 stage's run (`init`), with its own task, steps, randomization, exploring starts,
@@ -139,8 +139,14 @@ RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
         Stage("balance_follow", "balance_follow", 1_000_000, 0.8, init="balance_follow_nominal",
               randomization="sim2real", keep="best_policy.npz")),
         "ppo:balance_follow: 1959 in simulation, 1950 on the substitute, 100 % success"),
-    Recipe("swingup", _swingup_chain(),
-           "ppo:swingup: 1822 in simulation, 1824 on the substitute, 100 % success"),
+    Recipe("swingup", (
+        # PPO's swing-up (`_swingup_chain`) and its fine-tunes fail a real Qube's heavy arm and 6 ms
+        # latency (docs/calibration.md); the swingup controller, which swings that Qube up, imitated
+        # without history. Small PPO steps from here undid it (1870 to 700 in 0.6 M steps).
+        Stage("imitation", "swingup", 1_500_000, 10, teacher="swingup", calibration=REAL_QUBE_SERVO2,
+              hyperparameters={"policy_kwargs": IMITATION_ACTOR}),),
+        "ppo:swingup: 1894 in simulation, 1885 on the substitute, 100 % success on both domains, on the "
+        "calibrated real Qube measured as its board measures and on the real-Qube substitute"),
     Recipe("swingup_follow", (*_swingup_chain(), Stage(
         "swingup_follow", "swingup_follow", 2_000_000, 2, init="swingup", randomization="sim2real", seed=1,
         keep="best_policy.npz")),
