@@ -106,6 +106,7 @@ class Recipe:
 
 
 def _swingup_chain() -> tuple[Stage, ...]:
+    """PPO's swing-up: balance, then swing-up from it on the nominal model, then under `sim2real`."""
     return (Stage("balance", "balance", 500_000, 1.8),
             Stage("swingup_nominal", "swingup", 5_000_000, 10, init="balance"),
             Stage("swingup", "swingup", 2_000_000, 4, init="swingup_nominal", randomization="sim2real",
