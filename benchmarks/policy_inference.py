@@ -3,7 +3,7 @@
 Calls each policy on a stream of swing-up observations (a dm_env-style mapping,
 as `evaluate` and the hardware loop give it) and reports the median and 99th
 percentile time per call (microseconds) after a warm-up. The peer is the
-shipped memoryless `ppo:swingup`; the history policies are the same network
+shipped memoryless `ppo:swingup` (two tanh layers of 128); the history policies are the same network
 widened to a history of k steps (the inputs a trained adaptive policy has).
 
     python benchmarks/policy_inference.py [--calls 20000] [--history 4 8 16]

@@ -134,8 +134,8 @@ def wilson_interval(successes: int, trials: int, z: float = 1.96) -> tuple[float
 
 
 BASE_RECIPE = (("balance", 500_000), ("swingup", 5_000_000))
-"""How the base is trained when no `--base` is given: the shipped swing-up's recipe (task, steps),
-each stage starting from the previous one."""
+"""How the base is trained when no `--base` is given: the first two stages of the `swingup_follow`
+recipe, PPO's swing-up (task, steps), each stage starting from the previous one."""
 
 
 def train_base(runs: pathlib.Path, seed: int) -> None:

@@ -76,7 +76,7 @@ def test_policy_files_keep_the_history_and_refuse_mismatches(tmp_path):
 
 
 def test_shipped_format_1_policies_still_load_without_history():
-    policy = load_policy("ppo:swingup")
+    policy = load_policy("ppo:dampen")
     assert policy.meta["format"] == 1 and policy.history == 0
 
 

@@ -63,7 +63,7 @@ def test_every_shipped_policy_has_a_recipe_that_matches_its_training_record():
     ({"backend": "jax", "task": "rotor"}, "not 'rotor': its revolution counter"),
     ({"backend": "jax", "exploring_starts": 0.5}, "a jax stage trains from scratch"),
     ({"calibration": "no_such_qube.yaml"}, "calibration: .*no such calibration file"),
-    ({"calibration": parameters.REAL_QUBE_SERVO2}, "a calibrated stage fine-tunes an earlier stage"),
+    ({"calibration": parameters.REAL_QUBE_SERVO2}, "a calibrated PPO stage fine-tunes an earlier stage"),
     ({"calibration": parameters.REAL_QUBE_SERVO2, "randomization": "wide"}, "not both"),
     ({"calibration": parameters.REAL_QUBE_SERVO2, "backend": "jax"}, "a jax stage trains from scratch"),
 ])
@@ -128,6 +128,27 @@ def test_a_calibrated_stage_builds_its_worlds_around_the_calibrated_qube(monkeyp
     assert "balance 0.0001 M → balance 0.0001 M (calibrated on my_qube.yaml)" in row
 
 
+@needs_rl
+def test_a_calibrated_imitation_stage_imitates_in_worlds_around_the_calibrated_qube(monkeypatch, tmp_path,
+                                                                                    capsys):
+    built = []
+
+    def build(task, num_envs, seed, **kwargs):
+        built.append(kwargs)
+        raise StopBeforeTrainingError
+
+    monkeypatch.setattr(environments, "make_vec_env", build)
+    recipe = Recipe("imitated", (Stage("teach", "swingup", 100, 1, teacher="swingup",
+                                       calibration=parameters.REAL_QUBE_SERVO2),), "")
+    with pytest.raises(StopBeforeTrainingError):  # a teacher needs no earlier stage to start from
+        recipes.run(recipe, out=tmp_path / "runs", progress=False)
+    assert built[0]["randomization"] == calibrated.randomization_for(parameters.REAL_QUBE_SERVO2)
+    assert "randomization centred on the calibration" in capsys.readouterr().out
+    with pytest.raises(ValueError, match="not both"):
+        imitation.imitate("swingup", "swingup", 100, randomization="wide",
+                          calibration=parameters.REAL_QUBE_SERVO2)
+
+
 @pytest.mark.parametrize("name", list(recipes.JAX_RECIPES))
 def test_every_jax_recipe_is_valid(name):
     recipes.check(recipes.JAX_RECIPES[name])
@@ -155,7 +176,10 @@ def test_listing_shows_every_recipe_with_its_steps_and_time(capsys):
     for row, recipe in zip(rows, RECIPES.values(), strict=True):
         cells = row.split(" | ")
         assert cells[2] == f"{recipe.steps / 1e6:g} M" and cells[3] == f"{recipe.minutes:g} min"
-    assert "balance 0.5 M → swingup 5 M → swingup 2 M (sim2real)" in rows[list(RECIPES).index("swingup")]
+    assert "balance 0.5 M → swingup 5 M → swingup 2 M (sim2real) → swingup_follow 2 M (sim2real)" in rows[
+        list(RECIPES).index("swingup_follow")]
+    assert "| swingup 1.5 M imitating swingup (calibrated on real_qube_servo2.yaml) |" in rows[
+        list(RECIPES).index("swingup")]
 
 
 def test_train_with_a_task_alone_runs_its_recipe_and_with_options_one_run(monkeypatch, tmp_path):

@@ -19,8 +19,8 @@ calibration file, not to training under a randomization).
 `fine_tuning` says what a calibrated run starts from: the task's adaptive policy
 (`ppo:<task>_adaptive`, observation history included) with the hyperparameters of
 the PPO stage of its recipe (small exploration noise, small steps), or else the
-task's shipped policy. Fine-tuning the memoryless `ppo:swingup` this way made it
-worse on the held-out plants (docs/transfer.md); the adaptive policy already
+task's shipped policy. Fine-tuning the memoryless PPO swing-up (trained under `sim2real`) this
+way made it worse on the held-out plants (docs/transfer.md); the adaptive policy already
 swings them up, and keeps doing so.
 `adapt` runs the loop a lab runs on a Qube nobody described: calibrate it (the
 excitation experiment on its board), fine-tune a policy under the randomization

@@ -54,8 +54,8 @@ half of those slowly, half on a swing with about the energy of rest upright) in 
 without them PPO learnt to pump the pendulum up but not to catch it (returns near 1400 of 2048 after
 3 M steps, the pendulum drifting through upright), or to hang still (0.2 per step, no risk of hitting
 the arm limit) under randomization. With them alone, from scratch, it settled on spinning the pendulum
-round (about 1230 after 2.4 M steps). The shipped swing-up policy also starts from the balance run
-(`--init`), which it keeps and extends outwards, and `ppo:swingup_follow` from the swing-up run."""
+round (about 1230 after 2.4 M steps). PPO's swing-up run (the chain `ppo:swingup_follow` starts
+from) also starts from the balance run (`--init`), which it keeps and extends outwards."""
 
 HYPERPARAMETERS: dict[str, dict[str, Any]] = {"ppo": PPO, "sac": SAC}
 """Algorithm name -> hyperparameters (`num_envs` and `history` are ours; the rest go to the SB3

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import pathlib
 import time
 from typing import Any
@@ -79,7 +80,8 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
             history: int = 8, exploring_starts: float = EXPLORING_STARTS,
             hyperparameters: dict[str, Any] | None = None, task_kwargs: dict[str, Any] | None = None,
             teacher_knows_plant: bool = False, teacher_settings: dict[str, Any] | None = None,
-            epochs: int = EPOCHS, minibatch: int = MINIBATCH, progress: bool = True) -> pathlib.Path:
+            epochs: int = EPOCHS, minibatch: int = MINIBATCH, progress: bool = True,
+            calibration: str | os.PathLike | None = None) -> pathlib.Path:
     """Fit a PPO actor with `history` past steps to controller `teacher` on `task` by DAgger, over
     `steps` environment steps in `iterations` iterations, each followed by `epochs` passes of the fit
     over all labels so far in steps of `minibatch` labels, in simulation under `randomization`, a
@@ -91,7 +93,9 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
     the task's settings, e.g. a follow task's target schedule (`{"target": "steps"}`), as `train`'s.
     `teacher_knows_plant`: build each episode's teacher for the world's drawn parameters and delay.
     `teacher_settings`: keyword arguments of the teacher's controller (e.g. `ilqr`'s
-    `{"swing_up": "energy", "reference_speed": 2.0}`).
+    `{"swing_up": "energy", "reference_speed": 2.0}`). `calibration`: a calibration file to imitate
+    for, with `randomization=None`: the randomization centred on it (`calibrated.randomization_for`, as
+    `train(calibration=...)`), its path kept in the run's record.
     """
     if teacher not in baselines.names():
         raise ValueError(f"unknown teacher {teacher!r}; controllers: {', '.join(baselines.names())}")
@@ -113,6 +117,12 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
         raise ValueError(f"teacher_knows_plant must be True or False, got {teacher_knows_plant!r}")
     if not 0.0 <= exploring_starts <= 1.0:
         raise ValueError(f"exploring_starts must be a fraction in [0, 1], got {exploring_starts!r}")
+    if calibration is not None:
+        if randomization is not None:
+            raise ValueError("give a randomization or a calibration to centre one on, not both")
+        from qube_suite.training.calibrated import randomization_for
+
+        randomization = randomization_for(calibration)
     if randomization is not None:
         randomization_configs.load(randomization)
     task_kwargs = dict(task_kwargs or {})
@@ -125,7 +135,8 @@ def imitate(task: str = "swingup", teacher: str = "swingup", steps: int = 2_000_
     settings = {**HYPERPARAMETERS["ppo"], **(hyperparameters or {}), "history": history}
     out = pathlib.Path(out or f"runs/imitation_{task}_{seed}")
     return _imitate(task, teacher, steps, iterations, epochs, minibatch, seed, randomization, out,
-                    exploring_starts, settings, task_kwargs, teacher_knows_plant, teacher_settings, progress)
+                    exploring_starts, settings, task_kwargs, teacher_knows_plant, teacher_settings, progress,
+                    None if calibration is None else str(calibration))
 
 
 class Teachers:
@@ -193,7 +204,8 @@ class Teachers:
 
 
 def _imitate(task, teacher, steps, iterations, epochs, minibatch, seed, randomization, out, exploring_starts,
-             settings, task_kwargs, teacher_knows_plant, teacher_settings, progress) -> pathlib.Path:
+             settings, task_kwargs, teacher_knows_plant, teacher_settings, progress,
+             calibration) -> pathlib.Path:
     import stable_baselines3
     import torch
     from stable_baselines3.common.running_mean_std import RunningMeanStd
@@ -282,8 +294,8 @@ def _imitate(task, teacher, steps, iterations, epochs, minibatch, seed, randomiz
     wall_time = time.perf_counter() - start
     record = {"algo": "ppo", "task": task, "domain": "qube", "randomization":
               randomization if isinstance(randomization, str) or randomization is None else "custom",
-              "seed": seed, "num_envs": num_envs, "teacher": teacher, "iterations": iterations,
-              "epochs": epochs, "minibatch": minibatch,
+              "calibration": calibration, "seed": seed, "num_envs": num_envs, "teacher": teacher,
+              "iterations": iterations, "epochs": epochs, "minibatch": minibatch,
               "exploring_starts": exploring_starts, "task_kwargs": task_kwargs,
               "teacher_knows_plant": teacher_knows_plant, "teacher_settings": teacher_settings,
               "hyperparameters": given,
