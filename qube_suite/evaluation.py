@@ -30,6 +30,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+import dm_env
 import numpy as np
 
 from qube_suite import baselines, devices, recording, suite
@@ -91,7 +92,7 @@ FAILED_RESET_RETURN = 0.0
 """Return of an episode whose reset could not reach its start: it never ran."""
 
 
-def start_or_fail(environment) -> Any:
+def start_or_fail(environment) -> dm_env.TimeStep | None:
     """`environment.reset()`'s first TimeStep, or None when a board's reset could not reach the
     episode's start (`ResetError`; the motor is already stopped and the next reset drives again).
     The caller counts that episode as failed, with return `FAILED_RESET_RETURN`."""
