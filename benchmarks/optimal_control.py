@@ -16,15 +16,16 @@ acts on a history of observations). Plants, for each row:
   (`baselines.for_environment(name, env, parameters=calibration)`). A learned policy has no
   parameters to calibrate: its row is left out.
 
-Metrics per cell, over its episodes: return (mean and standard deviation); success
-(the task's own rule, `QubeTask.succeeded`: no termination, the pendulum within 10 degrees of upright
-for the final 2 s); time to upright (s): from the start until the pendulum is within 10
-degrees of upright for the rest of the episode, mean over the successful episodes; the
-largest |arm angle| (degrees), mean and worst over the episodes; electrical energy (J): the
-motor's ∫ V i dt over the episode (V the voltage applied, i the current the domain reports;
-on the substitute the current read at a sample answers the voltage of the interval before
-it), mean; compute per step (ms): wall-clock median and 99th percentile of the controller
-call, with the 99th percentile of the thread's CPU time.
+Metrics per cell, over its episodes: return (mean and standard deviation); success (the task's own
+rule, `QubeTask.succeeded`: no termination, the pendulum within 10 degrees of upright for the final
+2 s; an episode whose reset could not reach its start on the substitute counts as failed with return
+0, `evaluation.start_or_fail`, and the cell says how many); time to upright (s): from the start
+until the pendulum is within 10 degrees of upright for the rest of the episode, mean over the
+successful episodes; the largest |arm angle| (degrees), mean and worst over the episodes; electrical
+energy (J): the motor's ∫ V i dt over the episode (V the voltage applied, i the current the domain
+reports; on the substitute the current read at a sample answers the voltage of the interval before
+it), mean; compute per step (ms): wall-clock median and 99th percentile of the controller call, with
+the 99th percentile of the thread's CPU time.
 
 The episode loop is `qube_suite.evaluate`'s with the motor current and the arm recorded
 (`tests/test_optimal_control_benchmark.py` checks it gives `evaluate`'s returns and success).
@@ -40,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import pathlib
 import sys
 import time
@@ -54,7 +56,7 @@ from held_out import draw_plants, episode_plant  # noqa: E402
 
 from qube_suite import baselines, calibration, suite  # noqa: E402
 from qube_suite.conventions import GOAL_PENDULUM_TOLERANCE  # noqa: E402
-from qube_suite.evaluation import policy_for  # noqa: E402
+from qube_suite.evaluation import FAILED_RESET_RETURN, policy_for, start_or_fail  # noqa: E402
 
 ROWS: dict[str, tuple[str, ...]] = {
     "swingup": ("swingup", "mpc", "ilqr", "ppo:swingup", "ppo:swingup_adaptive"),
@@ -72,7 +74,8 @@ CURRENT_LAG = {"qube": 0, "qube_hardware": 1}
 @dataclasses.dataclass
 class Episode:
     """One episode's figures: return, success, time to upright (s, None if not upright at the end),
-    largest |theta| (rad), electrical energy (J), and per-step wall-clock and CPU times (s)."""
+    largest |theta| (rad), electrical energy (J), and per-step wall-clock and CPU times (s); an episode
+    whose reset failed (`reset_failed`) has no steps: return 0, failed, the other figures empty."""
 
     episode_return: float
     success: bool
@@ -81,6 +84,7 @@ class Episode:
     energy: float
     step_times: list[float]
     cpu_times: list[float]
+    reset_failed: bool = False
 
 
 def run_episode(spec: str, domain: str, task: str, seed: int,
@@ -110,7 +114,9 @@ def _episode(policy, environment, domain: str, task: str, seed: int) -> Episode:
     environment.task.random.seed(seed)
     if hasattr(policy, "reset"):
         policy.reset()
-    timestep = environment.reset()
+    timestep = start_or_fail(environment)
+    if timestep is None:
+        return Episode(FAILED_RESET_RETURN, False, None, math.nan, math.nan, [], [], reset_failed=True)
     step_times, cpu_times, errors, at_goal, arms, volts, amperes = [], [], [], [], [], [], []
     episode_return = 0.0
     while not timestep.last():
@@ -141,18 +147,24 @@ def _episode(policy, environment, domain: str, task: str, seed: int) -> Episode:
 
 
 def cell(episodes: Sequence[Episode]) -> list[str]:
-    """Table cells of one (controller, task, plants): return, success, time to upright, largest
-    |theta|, energy, compute."""
+    """Table cells of one (controller, task, plants): return, success (with the count of failed
+    resets), time to upright, largest |theta|, energy, compute; the last three over the episodes that ran."""
     returns = [e.episode_return for e in episodes]
     upright = [e.upright_time for e in episodes if e.success and e.upright_time is not None]
-    arms = np.degrees([e.arm_excursion for e in episodes])
-    times = np.concatenate([e.step_times for e in episodes]) * 1e3
-    cpu = np.concatenate([e.cpu_times for e in episodes]) * 1e3
-    return [f"{np.mean(returns):.0f} ± {np.std(returns):.0f}",
-            f"{100 * np.mean([e.success for e in episodes]):.0f} %",
+    ran = [e for e in episodes if not e.reset_failed]
+    failed_resets = len(episodes) - len(ran)
+    success = f"{100 * np.mean([e.success for e in episodes]):.0f} %"
+    if failed_resets:
+        success += f" ({failed_resets} failed reset{'' if failed_resets == 1 else 's'})"
+    if not ran:
+        return [f"{np.mean(returns):.0f} ± {np.std(returns):.0f}", success, "–", "–", "–", "–"]
+    arms = np.degrees([e.arm_excursion for e in ran])
+    times = np.concatenate([e.step_times for e in ran]) * 1e3
+    cpu = np.concatenate([e.cpu_times for e in ran]) * 1e3
+    return [f"{np.mean(returns):.0f} ± {np.std(returns):.0f}", success,
             f"{np.mean(upright):.2f}" if upright else "–",
             f"{np.mean(arms):.0f} / {np.max(arms):.0f}",
-            f"{np.mean([e.energy for e in episodes]):.2f}",
+            f"{np.mean([e.energy for e in ran]):.2f}",
             f"{np.median(times):.2f} / {np.percentile(times, 99):.2f} ({np.percentile(cpu, 99):.2f})"]
 
 

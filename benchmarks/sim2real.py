@@ -435,10 +435,12 @@ def episodes(row: dict) -> int:
 
 def held_out_rows(path: str, names: dict[str, str]) -> list[dict]:
     """Score rows from a `benchmarks/held_out.py --json` file (the same plants and episodes when run
-    with its default seeds and `--plants` = `--held-out`), each policy's row named by `names`."""
+    with its default seeds and `--plants` = `--held-out`), each policy's row named by `names`; its
+    cells on the substitute's own plant (`--substitute`) as the condition "hardware"."""
     cells = json.loads(pathlib.Path(path).read_text())["cells"]
     return [{"run": names.get(cell["policy"], cell["policy"]), "training_seed": 0,
-             "condition": f"held-out {cell['plant']}", "mean_return": cell["mean_return"],
+             "condition": "hardware" if cell["plant"] == held_out.SUBSTITUTE else f"held-out {cell['plant']}",
+             "mean_return": cell["mean_return"],
              "success_rate": cell["successes"] / cell["episodes"], "episodes": cell["episodes"]}
             for cell in cells]
 

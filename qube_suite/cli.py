@@ -463,9 +463,15 @@ def _eval(args: argparse.Namespace) -> int:
         episodes = _count(summary["episodes"], "episode")
         print(f"{summary['policy']} on {summary['domain']}/{summary['task']}, {episodes} from seed "
               f"{summary['seed']}:")
+        compute = ("" if summary["step_time_median_ms"] is None else
+                   f", compute per step {summary['step_time_median_ms']:.3f} ms median, "
+                   f"{summary['step_time_p99_ms']:.3f} ms p99")
         print(f"  return {summary['mean_return']:.1f} +- {summary['std_return']:.1f}, "
-              f"success {100 * summary['success_rate']:.0f} %, compute per step "
-              f"{summary['step_time_median_ms']:.3f} ms median, {summary['step_time_p99_ms']:.3f} ms p99")
+              f"success {100 * summary['success_rate']:.0f} %{compute}")
+        failed = summary["failed_resets"]
+        if failed:
+            print(f"  reset failed in {_count(len(failed), 'episode')} ({', '.join(map(str, failed))}): the "
+                  "start was not reached, so each counts as failed with return 0")
         if summary["follow_error"] is not None:
             print(f"  arm from its target after the first 2 s: {summary['follow_error']:.3f} rad on average")
     return 0

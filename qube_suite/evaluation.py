@@ -12,6 +12,11 @@ at the episode's end; documented in docs/controllers.md):
     throughout the final 2 s;
   * rotor: at least 5 net revolutions.
 
+On a board, an episode whose reset could not reach its start (`ResetError`: the reset
+controllers gave up within the reset timeout, motor stopped) never ran: it counts as failed,
+with return 0, its index is listed in `failed_resets`, and the next episode resets again
+(`start_or_fail`, the rule of every episode loop that scores episodes).
+
 Follow tasks also report how well the arm follows its target: the mean of
 |theta - theta_target| (rad) over every step after an episode's first 2 s (the
 return hides it: the arm's share of the reward is small).
@@ -25,9 +30,11 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+import dm_env
 import numpy as np
 
 from qube_suite import baselines, devices, recording, suite
+from qube_suite.hardware.errors import ResetError
 from qube_suite.policies import load_policy, names_a_policy, shipped
 from qube_suite.progress import Progress
 from qube_suite.tasks.base import success_steps
@@ -51,6 +58,8 @@ class EvaluationResult:
     follow_error: float | None = None
     """Mean |theta - theta_target| (rad) over the steps after each episode's first 2 s; None for a
     task without a target or when no episode lasted 2 s."""
+    failed_resets: list[int] = dataclasses.field(default_factory=list)
+    """Episodes (0: the first) whose reset could not reach the start: failed, return 0."""
 
     @property
     def mean_return(self) -> float:
@@ -65,17 +74,32 @@ class EvaluationResult:
         return float(np.mean(self.successes))
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary; step times in milliseconds."""
+        """JSON-ready summary; step times in milliseconds (None when no episode took a step)."""
+        stepped = len(self.step_times) > 0
         return {
             "domain": self.domain, "task": self.task, "policy": self.policy,
             "episodes": self.episodes, "seed": self.seed,
             "mean_return": self.mean_return, "std_return": self.std_return,
             "success_rate": self.success_rate, "returns": self.returns,
-            "follow_error": self.follow_error,
-            "step_time_median_ms": float(np.median(self.step_times) * 1e3),
-            "step_time_p99_ms": float(np.percentile(self.step_times, 99) * 1e3),
-            "step_cpu_time_p99_ms": float(np.percentile(self.step_cpu_times, 99) * 1e3),
+            "follow_error": self.follow_error, "failed_resets": self.failed_resets,
+            "step_time_median_ms": float(np.median(self.step_times) * 1e3) if stepped else None,
+            "step_time_p99_ms": float(np.percentile(self.step_times, 99) * 1e3) if stepped else None,
+            "step_cpu_time_p99_ms": float(np.percentile(self.step_cpu_times, 99) * 1e3) if stepped else None,
         }
+
+
+FAILED_RESET_RETURN = 0.0
+"""Return of an episode whose reset could not reach its start: it never ran."""
+
+
+def start_or_fail(environment) -> dm_env.TimeStep | None:
+    """`environment.reset()`'s first TimeStep, or None when a board's reset could not reach the
+    episode's start (`ResetError`; the motor is already stopped and the next reset drives again).
+    The caller counts that episode as failed, with return `FAILED_RESET_RETURN`."""
+    try:
+        return environment.reset()
+    except ResetError:
+        return None
 
 
 def policy_for(spec: str, environment, domain: str = "qube") -> Callable[[Any], float]:
@@ -153,14 +177,20 @@ def _evaluate(policy, environment, domain: str, task: str, episodes: int, seed: 
     follows_target = environment.task.follows_target
     settled = success_steps(environment.control_frequency)
     returns, successes, step_times, step_cpu_times = [], [], [], []
-    arm_errors = []
+    arm_errors, failed_resets = [], []
     bar = Progress(episodes, "episode", f"{name} on {domain}/{task}", quiet=not progress)
     try:
         for episode in range(episodes):
             environment.task.random.seed(seed + episode)
             if hasattr(policy, "reset"):
                 policy.reset()
-            timestep = environment.reset()
+            timestep = start_or_fail(environment)
+            if timestep is None:
+                returns.append(FAILED_RESET_RETURN)
+                successes.append(False)
+                failed_resets.append(episode)
+                bar.update()
+                continue
             episode_return, at_goal = 0.0, []
             while not timestep.last():
                 start, cpu_start = time.perf_counter(), time.thread_time()
@@ -182,4 +212,5 @@ def _evaluate(policy, environment, domain: str, task: str, episodes: int, seed: 
         if hasattr(policy, "close"):
             policy.close()
     return EvaluationResult(domain, task, name, episodes, seed, returns, successes, np.array(step_times),
-                            np.array(step_cpu_times), float(np.mean(arm_errors)) if arm_errors else None)
+                            np.array(step_cpu_times), float(np.mean(arm_errors)) if arm_errors else None,
+                            failed_resets)

@@ -94,3 +94,52 @@ def test_eval_user_errors_are_one_line(capsys, argv, message):
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+UNREACHABLE = {"reset_voltage_limit": 0.05, "reset_timeout": 1.0}
+"""A hardware domain whose reset cannot swing the pendulum up: every balance reset fails."""
+
+
+def test_a_failed_reset_is_that_episodes_failure_not_a_crash():
+    result = evaluate("balance", domain="qube_hardware", task="balance", episodes=2, seed=0,
+                      domain_kwargs=UNREACHABLE)
+    assert result.failed_resets == [0, 1]
+    assert result.successes == [False, False] and result.returns == [0.0, 0.0]
+    summary = result.to_dict()
+    assert summary["failed_resets"] == [0, 1] and summary["step_time_median_ms"] is None
+
+
+def test_the_episodes_around_a_failed_reset_count_as_they_ran(monkeypatch):
+    from qube_suite.devices.qube import hardware
+
+    reset_to, calls = hardware.Physics.reset_to, []
+
+    def second_one_fails(physics, state):
+        calls.append(state)
+        if len(calls) == 2:
+            raise hardware.ResetError("reset failed: could not swing up and hold upright")
+        reset_to(physics, state)
+
+    monkeypatch.setattr(hardware.Physics, "reset_to", second_one_fails)
+    result = evaluate("balance", domain="qube_hardware", task="balance", episodes=3, seed=0)
+    assert result.failed_resets == [1] and result.successes == [True, False, True]
+    assert result.returns[1] == 0.0 and min(result.returns[0], result.returns[2]) > 2000
+
+
+def test_other_hardware_errors_still_stop_the_evaluation(monkeypatch):
+    from qube_suite.devices.qube import hardware
+
+    def lost_zero(physics, state):
+        raise hardware.EncoderCheckError("the pendulum hangs at rest but its encoder reads 3 counts")
+
+    monkeypatch.setattr(hardware.Physics, "reset_to", lost_zero)
+    with pytest.raises(hardware.EncoderCheckError):
+        evaluate("balance", domain="qube_hardware", task="balance", episodes=2)
+
+
+def test_eval_says_which_resets_failed(capsys, monkeypatch):
+    monkeypatch.setattr(cli, "_hardware_domain_kwargs", lambda args: UNREACHABLE)
+    assert cli.main(["eval", "--task", "balance", "--controller", "balance", "--episodes", "2",
+                     "--domain", "qube_hardware", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "success 0 %" in out and "reset failed in 2 episodes (0, 1)" in out

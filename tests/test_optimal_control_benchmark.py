@@ -64,3 +64,13 @@ def test_quick_run_writes_the_page(benchmark, tmp_path, monkeypatch, capsys):
     assert [row.split(" | ")[1] for row in rows] == [
         "nominal simulation", "substitute", "held-out, nominal", "held-out, calibrated",
         "nominal simulation", "substitute", "held-out, nominal"]
+
+
+def test_a_failed_reset_is_a_failed_episode_in_the_table(benchmark):
+    unreachable = {"reset_voltage_limit": 0.05, "reset_timeout": 1.0}
+    failed = benchmark.run_episode("balance", "qube_hardware", "balance", seed=0, domain_kwargs=unreachable)
+    assert failed.reset_failed and not failed.success and failed.episode_return == 0.0
+    ran = benchmark.run_episode("balance", "qube", "balance", seed=0)
+    cells = benchmark.cell([ran, failed])
+    assert cells[1] == "50 % (1 failed reset)"
+    assert cells[3] == benchmark.cell([ran])[3]  # the arm, energy and compute of the episode that ran

@@ -22,6 +22,7 @@ from qube_suite.hardware.errors import (
     MotorStallError,
     NotAtRestError,
     QuanserSDKNotFoundError,
+    ResetError,
     SafetyStopError,
     WatchdogExpiredError,
 )
@@ -42,5 +43,5 @@ __all__ = [
     "EncoderGlitchError", "HardwareError",
     "MissedSamplesError", "MotorStallError", "NotAtRestError", "QuanserSDKNotFoundError", "QuanserWrapper",
     "QubeServo2",
-    "QubeServo3", "SafetyStopError", "StateEstimator", "VelocityFilter", "WatchdogExpiredError",
+    "QubeServo3", "ResetError", "SafetyStopError", "StateEstimator", "VelocityFilter", "WatchdogExpiredError",
 ]

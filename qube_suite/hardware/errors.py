@@ -33,6 +33,11 @@ class BoardIOError(HardwareError):
     the wrapper stopped the motor first, as for a safety stop."""
 
 
+class ResetError(HardwareError):
+    """A reset did not bring the device to its episode's start within the reset timeout; its motors
+    are stopped (0 V, amplifier disabled). The episode never started: `evaluate` counts it as failed."""
+
+
 class SafetyStopError(HardwareError):
     """The wrapper stopped the motor (0 V, amplifier disabled) for the reason in the subclass."""
 

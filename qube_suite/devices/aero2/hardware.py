@@ -54,7 +54,7 @@ from qube_suite.devices.qube.parameters import values_of
 from qube_suite.devices.qube.simulation import check_control_frequency
 from qube_suite.domains.effects import Effects
 from qube_suite.domains.interface import BoardClockAndLed, BoardLifecycle
-from qube_suite.hardware.errors import HardwareError
+from qube_suite.hardware.errors import ResetError
 from qube_suite.hardware.quanser import SIMULATED, Device, QuanserWrapper
 
 AERO2 = Device(
@@ -95,10 +95,6 @@ RESET_GAINS = {"pitch": (40.0, 20.0, 0.0), "yaw": (60.0, 40.0, 5.0)}
 pitch is a stable pendulum and needs damping only to settle fast; the yaw has nothing to hold it
 but its friction, which the integral overcomes. On substitute Aeros they bring the Aero from 2 s of
 random voltages to its start in 0.3 to 3 s."""
-
-
-class ResetError(HardwareError):
-    """The Aero did not reach its start within the reset timeout; both motors are stopped."""
 
 
 class ResetController:

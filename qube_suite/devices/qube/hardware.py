@@ -61,7 +61,7 @@ from qube_suite.devices.qube import parameters as params
 from qube_suite.domains.effects import Effects
 from qube_suite.domains.interface import BoardClockAndLed, MeasuredState
 from qube_suite.hardware import conventions
-from qube_suite.hardware.errors import EncoderGlitchError, HardwareError
+from qube_suite.hardware.errors import EncoderGlitchError, HardwareError, ResetError
 from qube_suite.hardware.estimation import StateEstimator
 from qube_suite.hardware.plant import BOARD_MOTORS
 from qube_suite.hardware.quanser import DEVICES, SIMULATED, QuanserWrapper
@@ -221,10 +221,6 @@ def collect_keeping_signals() -> None:
 
 
 FULL_COLLECTIONS = _FullCollectionsHeld()
-
-
-class ResetError(HardwareError):
-    """A reset controller did not reach the episode's start in time."""
 
 
 class EncoderCheckError(HardwareError):

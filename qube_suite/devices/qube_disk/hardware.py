@@ -29,7 +29,7 @@ from qube_suite.devices.qube_disk.substitute import plant_overrides
 from qube_suite.domains.effects import Effects
 from qube_suite.domains.interface import BoardClockAndLed, BoardLifecycle
 from qube_suite.hardware import conventions as board_conventions
-from qube_suite.hardware.errors import HardwareError
+from qube_suite.hardware.errors import ResetError
 from qube_suite.hardware.quanser import DEVICES, SIMULATED, QuanserWrapper
 from qube_suite.velocity_filter import VelocityFilter
 
@@ -50,10 +50,6 @@ DEFAULT_RESET_TIMEOUT = 5.0
 
 RESET_LED = (1.0, 0.8, 0.0)
 """Yellow while the disk is brought to rest."""
-
-
-class ResetError(HardwareError):
-    """The disk did not come to rest within the reset timeout; the motor is stopped."""
 
 
 class Physics(BoardClockAndLed, BoardLifecycle, control.Physics):
