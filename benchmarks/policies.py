@@ -7,9 +7,12 @@ hardware substitute (`qube_hardware`), through
 `qube_suite.evaluate` (success as there: no termination and the pendulum within
 10 degrees of its goal for the final 2 s; rotor: at least 5 revolutions). The
 table also gives each policy's training record: environment steps and wall-clock
-time on the machine that trained it.
+time on the machine that trained it. `--plant NAME` scores them on the substitute with a named
+plant too (`qube_suite.hardware.plant.PLANTS`, e.g. `real_qube_servo2`: the substitute like a
+real Qube-Servo 2), in rows `qube_hardware (NAME)`.
 
     python benchmarks/policies.py [--episodes 20] [--seed 0] [--json results.json] [--policies SPEC ...]
+                                  [--plant NAME]
 """
 
 from __future__ import annotations
@@ -20,16 +23,17 @@ import json
 import numpy as np
 
 from qube_suite import evaluate
+from qube_suite.hardware.plant import PLANTS
 from qube_suite.policies import load_policy, shipped
 
 
 def evaluate_on_fresh_qubes(policy, domain: str, task: str, episodes: int, seed: int,
-                            task_kwargs: dict) -> dict:
+                            task_kwargs: dict, domain_kwargs: dict | None = None) -> dict:
     """`evaluate(...).to_dict()` with every episode on a fresh Qube: on the hardware substitute,
     an episode that ends with the arm flung past its limit would otherwise stop the board in the
     next reset (as on a real Qube) and end the evaluation. `follow_error`: the episodes' mean (rad)."""
     results = [evaluate(policy, domain=domain, task=task, episodes=1, seed=seed + episode,
-                        task_kwargs=task_kwargs) for episode in range(episodes)]
+                        task_kwargs=task_kwargs, domain_kwargs=domain_kwargs) for episode in range(episodes)]
     returns = [r for result in results for r in result.returns]
     follow_errors = [result.follow_error for result in results if result.follow_error is not None]
     return {"mean_return": float(np.mean(returns)), "std_return": float(np.std(returns)),
@@ -44,7 +48,12 @@ def main() -> None:
     parser.add_argument("--json", default=None, help="also write the results to this JSON file")
     parser.add_argument("--policies", nargs="+", metavar="SPEC", choices=list(shipped()),
                         default=list(shipped()), help="the shipped policies to score (default: all)")
+    parser.add_argument("--plant", choices=list(PLANTS), default=None,
+                        help="also score on the substitute with this named plant")
     args = parser.parse_args()
+    domains = {"qube": ("qube", None), "qube_hardware": ("qube_hardware", None)}
+    if args.plant:
+        domains[f"qube_hardware ({args.plant})"] = ("qube_hardware", {"plant": args.plant})
     rows = []
     print("| policy | domain | task | return (mean ± std) | success | follow error | training steps | "
           "training wall time |")
@@ -54,10 +63,10 @@ def main() -> None:
         training = policy.meta.get("training", {})
         task_kwargs = training.get("task_kwargs") or {}
         task = policy.tasks[0] + "".join(f", {key}={value}" for key, value in task_kwargs.items())
-        for domain in ("qube", "qube_hardware"):
-            result = evaluate_on_fresh_qubes(policy, domain, policy.tasks[0], args.episodes, args.seed,
-                                             task_kwargs)
-            row = {**result, "policy": spec, "training_steps": training.get("steps"),
+        for domain, (domain_name, domain_kwargs) in domains.items():
+            result = evaluate_on_fresh_qubes(policy, domain_name, policy.tasks[0], args.episodes, args.seed,
+                                             task_kwargs, domain_kwargs)
+            row = {**result, "policy": spec, "domain": domain, "training_steps": training.get("steps"),
                    "training_wall_time_s": training.get("wall_time_s"),
                    "randomization": training.get("randomization"), "task_kwargs": task_kwargs}
             rows.append(row)
