@@ -54,7 +54,6 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import math
 import pathlib
 import re
 import shutil
@@ -123,14 +122,6 @@ def bootstrap_interval(values: list[float], level: float = 0.95,
     rng = np.random.default_rng(0)
     means = rng.choice(np.asarray(values), size=(resamples, len(values))).mean(axis=1)
     return tuple(float(q) for q in np.quantile(means, [(1 - level) / 2, (1 + level) / 2]))
-
-
-def wilson_interval(successes: int, trials: int, z: float = 1.96) -> tuple[float, float]:
-    """Wilson score interval of a success rate."""
-    p = successes / trials
-    centre = (p + z * z / (2 * trials)) / (1 + z * z / trials)
-    half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / (1 + z * z / trials)
-    return max(0.0, centre - half), min(1.0, centre + half)
 
 
 BASE_RECIPE = (("balance", 500_000), ("swingup", 5_000_000))
@@ -269,7 +260,7 @@ def score(job: dict) -> dict:
     returns = [result.returns[0] for result in results]
     successes = sum(result.successes[0] for result in results)
     low, high = bootstrap_interval(returns)
-    success_low, success_high = wilson_interval(successes, episodes)
+    success_low, success_high = held_out.wilson_interval(successes, episodes)
     return {"run": run, "training_seed": job["training_seed"], "condition": condition,
             "mean_return": float(np.mean(returns)),
             "return_ci": [low, high], "success_rate": successes / episodes,
@@ -463,7 +454,8 @@ def summarize(rows: list[dict], costs: dict[str, dict]) -> list[dict]:
         spent = [cost for name, cost in costs.items() if name.rsplit(",", 1)[0] == run]
         summary.append({
             "row": run, "seeds": len({row["training_seed"] for row in held}), "episodes": trials,
-            "success_rate": successes / trials, "success_ci": list(wilson_interval(successes, trials)),
+            "success_rate": successes / trials,
+            "success_ci": list(held_out.wilson_interval(successes, trials)),
             "plants": {plant: float(np.mean(values)) for plant, values in plants.items()},
             "worst_plant": float(min(min(values) for values in plants.values())),
             "mean_return": float(np.mean([row["mean_return"] for row in held])),
