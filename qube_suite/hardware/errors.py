@@ -35,7 +35,8 @@ class BoardIOError(HardwareError):
 
 class ResetError(HardwareError):
     """A reset did not bring the device to its episode's start within the reset timeout; its motors
-    are stopped (0 V, amplifier disabled). The episode never started: `evaluate` counts it as failed."""
+    are at 0 V (the board stays open, its amplifier off once the environment closes). The episode
+    never started: `evaluate` counts it as failed."""
 
 
 class SafetyStopError(HardwareError):
