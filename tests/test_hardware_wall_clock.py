@@ -190,3 +190,16 @@ def test_hardware_domain_resets_and_runs_on_the_wall_clock_board(wall_clock_boar
             time.sleep(0.15)                                # a pause longer than the watchdog
     state = wall_clock_board.state()
     assert state["closed_cleanly"] and not state["amplifier_enabled"]
+
+
+@pytest.mark.slow
+def test_evaluate_goes_on_past_failed_resets_and_leaves_the_wall_clock_board_off(wall_clock_board, busy_core):
+    from qube_suite import evaluate
+
+    result = evaluate("balance", domain="qube_hardware", task="balance", episodes=2,
+                      environment_kwargs={"time_limit": 0.5},
+                      domain_kwargs={"board": "qube_servo2_usb", "reset_voltage_limit": 0.05,
+                                     "reset_timeout": 0.5})                   # too weak to swing up
+    assert result.failed_resets == [0, 1] and result.returns == [0.0, 0.0] and result.success_rate == 0.0
+    state = wall_clock_board.state()
+    assert state["applied_voltage"] == 0.0 and not state["amplifier_enabled"] and state["closed_cleanly"]
