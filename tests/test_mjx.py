@@ -141,6 +141,40 @@ def test_mjx_world_follows_the_numpy_domain_with_parameters_and_effects():
     assert not np.allclose(measured, exact, atol=1e-4)  # the effects are on
 
 
+def test_observation_delay_and_saturation_follow_the_numpy_domain():
+    config = {"effects": {"quantization": True, "observation_delay": {"steps": 3},
+                          "voltage_offset": {"voltage": 0.3}, "saturation": {"voltage": 0.5}}}
+    start, volts = np.array([0.0, math.pi, 0.0, 0.0]), 2.0 * _voltages()
+    expected_exact, expected_measured = _numpy_run(config, start, volts)
+    exact, measured = _jax_run(config, start, volts)
+    np.testing.assert_allclose(exact, expected_exact, atol=3e-3)
+    resolution = 2 * math.pi / 2048
+    np.testing.assert_allclose(measured, expected_measured, atol=resolution * 1.01)
+    # the task sees the state of three steps before, the start's until then
+    np.testing.assert_allclose(measured[:2], np.tile(np.round(start / resolution) * resolution, (2, 1)),
+                               atol=1e-5)
+    np.testing.assert_allclose(measured[3:, :2], exact[:-3, :2], atol=resolution * 0.51)
+    # the saturation binds: without it the arm turns further
+    free, _ = _jax_run({"effects": {"quantization": True, "voltage_offset": {"voltage": 0.3}}}, start, volts)
+    assert np.max(np.abs(free[:, 0] - exact[:, 0])) > 0.05
+
+
+def test_delay_lines_are_as_long_as_the_longest_drawn_delay():
+    config = randomization_config.load({"effects": {
+        "action_delay": {"seconds": {"distribution": "uniform", "low": 0.0, "high": 0.012}},
+        "observation_delay": {"steps": {"distribution": "uniform", "low": 1, "high": 4}}}})
+    assert worlds.max_delay_steps(config, "action_delay", 250.0) == 3
+    assert worlds.max_delay_steps(config, "observation_delay", 250.0) == 4
+    assert worlds.max_delay_steps(config, "observation_delay", 500.0) == 4
+    assert worlds.max_delay_steps(randomization_config.load("none"), "action_delay", 250.0) == 0
+    batch, _ = worlds.draw(config, 6, 11, 250.0)
+    for world in range(6):
+        drawn = sample(config, np.random.RandomState(11 + world))
+        assert int(batch.observation_delay_steps[world]) == drawn.effects["observation_delay"]["steps"]
+        assert int(batch.delay_steps[world]) == round(drawn.effects["action_delay"]["seconds"] / 0.004)
+    assert len(set(np.asarray(batch.observation_delay_steps).tolist())) > 1
+
+
 def test_drawn_worlds_carry_the_numpy_draws_written_by_the_numpy_domain():
     config = randomization_config.load("sim2real")
     batch, axes = worlds.draw(config, 5, 7, 250.0)
@@ -230,7 +264,8 @@ def test_an_episode_begun_by_brax_auto_reset_runs_as_a_fresh_one():
     the velocity filter and the action delay line must not carry the last episode's values over."""
     from brax.envs.wrappers.training import AutoResetWrapper, EpisodeWrapper
 
-    config = {"effects": {"velocity_filter": True, "action_delay": {"steps": 2}}}
+    config = {"effects": {"velocity_filter": True, "observation_delay": {"steps": 2},
+                          "action_delay": {"steps": 2}}}
     env = AutoResetWrapper(EpisodeWrapper(environment.QubeMjx("swingup", randomization=config), 6, 1))
     actions = jnp.asarray([0.9, -0.7, 0.8, -0.9, 0.6, 1.0], jnp.float32)[:, None]
 
@@ -299,7 +334,7 @@ def test_the_privileged_critic_sees_the_exact_state_and_each_worlds_plant():
                                                                           "low": 0.0, "high": 0.3}}}}
     env = environment.QubeMjx("swingup", randomization=config, history=1, privileged_critic=True)
     plain = environment.QubeMjx("swingup", randomization=config, history=1)
-    assert env.observation_size == {"state": (13,), "privileged_state": (13 + 6 + 11,)}
+    assert env.observation_size == {"state": (13,), "privileged_state": (13 + 6 + 13,)}
     batch, axes = env.draw_worlds(None, jax.random.split(jax.random.PRNGKey(0), 2))
     start = jnp.asarray([0.1, 3.0, 0.0, 0.0], jnp.float32)
 

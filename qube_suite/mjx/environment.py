@@ -5,9 +5,9 @@
 training loop runs it as it is, with `Worlds.draw` as its domain randomization.
 What the world does each control step is the numpy `qube` domain's: the action
 (in [-1, 1]) times the task's voltage limit, through the actuator effects (delay,
-offset, dead zone) to the motor of `qube.xml`; one control period of MuJoCo's step
-(MJX, float32); the sensor effects (quantization, velocity filter, noise) on the
-exact state. The task object itself (`qube_suite.tasks`) gives the reward, the safe
+offset, dead zone, saturation) to the motor of `qube.xml`; one control period of
+MuJoCo's step (MJX, float32); the sensor effects (quantization, velocity filter,
+noise, delay) on the exact state. The task object itself (`qube_suite.tasks`) gives the reward, the safe
 set and the observation: its formulas run on JAX arrays (`tasks.elementwise`), and
 its start distribution (`tasks.starts`) is drawn with `jax.random`.
 
@@ -27,6 +27,7 @@ from brax.envs.base import Env, State
 from mujoco import mjx
 
 from qube_suite.angles import wrap_angle
+from qube_suite.conventions import MAX_VOLTAGE_LIMIT
 from qube_suite.devices.qube import batch as qube_batch
 from qube_suite.devices.qube import simulation as qube
 from qube_suite.devices.qube import tasks as qube_tasks
@@ -93,7 +94,8 @@ class QubeMjx(Env):
         self.control_frequency = float(control_frequency)
         self.seed = int(seed)
         self._substeps = qube.substeps_per_control_period(control_frequency)
-        self._delay_length = world_draws.max_delay_steps(self.config) + 1
+        self._line_lengths = {name: world_draws.max_delay_steps(self.config, name, control_frequency) + 1
+                              for name in world_draws.DELAYS}
         self._effects = set(self.config.effects)
         self.sys, _ = world_draws.draw(self.config, None, self.seed, self.control_frequency)
         ids = qube.ElementIds(qube_batch.physics_model(control_frequency))
@@ -134,9 +136,12 @@ class QubeMjx(Env):
         data = data.replace(qpos=data.qpos.at[self._positions].set(state[:2]),
                             qvel=data.qvel.at[self._velocities].set(state[2:]))
         rng, noise_key = jax.random.split(rng)
-        memory = self._first_memory(data)
-        measured = self._add_noise(memory["filter"], noise_key)
-        info = {"rng": rng, "measured": measured, **memory}
+        filtered = self._quantize(self.exact_state(data))  # the velocity filter settles on it
+        measured = self._add_noise(filtered, noise_key)
+        memory = {"filter": filtered,
+                  "commands": jnp.zeros(self._line_lengths["action_delay"], data.ctrl.dtype),
+                  "observations": jnp.tile(measured, (self._line_lengths["observation_delay"], 1))}
+        info = {"rng": rng, "measured": measured, "memory": memory, "first_memory": memory}
         features, reward, done = self.rules(measured, data.time)
         past = jnp.tile(features, self.history)
         obs = self._observation(jnp.concatenate([features, past, jnp.zeros(self.history, features.dtype)]),
@@ -150,13 +155,13 @@ class QubeMjx(Env):
         action = jnp.where(jnp.isfinite(action[0]), jnp.clip(action[0], -1.0, 1.0), 0.0)
         volts = action * self.task.voltage_limit
         data = state.pipeline_state
+        info = dict(state.info)
         # an episode's first step: Brax's auto-reset puts back the first physics and observation, not
-        # the info, so the effects' memory is started again here
+        # the info, so the memory is put back here as the episode's start left it
         fresh = data.time == 0.0
-        info = dict(state.info) | jax.tree.map(lambda first, last: jnp.where(fresh, first, last),
-                                               self._first_memory(data),
-                                               {key: state.info[key] for key in ("filter", "commands")})
-        motor, info["commands"] = self._actuate(volts, info["commands"])
+        memory = jax.tree.map(lambda first, last: jnp.where(fresh, first, last), info["first_memory"],
+                              info["memory"])
+        motor, memory["commands"] = self._actuate(volts, memory["commands"])
         data = data.replace(ctrl=jnp.reshape(motor, (1,)).astype(data.ctrl.dtype))
         for _ in range(self._substeps):
             data = mjx.step(self.sys.model, data)
@@ -165,13 +170,14 @@ class QubeMjx(Env):
         info["rng"], noise_key = jax.random.split(info["rng"])
         measured = self._quantize(exact)
         if "velocity_filter" in self._effects:
-            last = info["filter"]
+            last = memory["filter"]
             velocities = filtered_velocity(last[2:], measured[:2], last[:2], self.sys.filter_pole,
                                            self.sys.filter_gain)
             measured = jnp.concatenate([measured[:2], velocities])
-            info["filter"] = measured
+            memory["filter"] = measured
         measured = self._add_noise(measured, noise_key)
-        info["measured"] = measured
+        measured, memory["observations"] = self._delay_observation(measured, memory["observations"])
+        info["measured"], info["memory"] = measured, memory
         features, reward, done = self.rules(measured, data.time)
         done = jnp.where(diverged, 1.0, done)
         inputs = self._policy_inputs(state.obs, features, volts)
@@ -223,22 +229,23 @@ class QubeMjx(Env):
 
     # -- effects ---------------------------------------------------------------------
 
-    def _first_memory(self, data: mjx.Data) -> dict[str, jax.Array]:
-        """The effects' memory at an episode's start in `data`: the velocity filter settled on the
-        quantized state (before noise), and an empty delay line."""
-        return {"filter": self._quantize(self.exact_state(data)),
-                "commands": jnp.zeros(self._delay_length, data.ctrl.dtype)}
-
     def _actuate(self, volts: jax.Array, commands: jax.Array) -> tuple[jax.Array, jax.Array]:
         """The motor voltage (V) for the command `volts`, and the updated delay line (newest last)."""
         if "action_delay" in self._effects:
-            commands = jnp.concatenate([commands[1:], volts[None]])
-            volts = commands[self._delay_length - 1 - self.sys.delay_steps]
+            volts, commands = _delayed(volts, commands, self.sys.delay_steps)
         if "voltage_offset" in self._effects:
             volts = volts + self.sys.voltage_offset
         if "dead_zone" in self._effects:
             volts = jnp.sign(volts) * jnp.maximum(jnp.abs(volts) - self.sys.dead_zone, 0.0)
+        if "saturation" in self._effects:
+            volts = jnp.clip(volts, -self.sys.saturation, self.sys.saturation)
         return volts, commands
+
+    def _delay_observation(self, measured: jax.Array, observations: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """The measured state the task sees, and the updated delay line of measured states (newest last)."""
+        if "observation_delay" not in self._effects:
+            return measured, observations
+        return _delayed(measured, observations, self.sys.observation_delay_steps)
 
     def _quantize(self, exact: jax.Array) -> jax.Array:
         if "quantization" not in self._effects:
@@ -253,6 +260,13 @@ class QubeMjx(Env):
         return jnp.concatenate([wrap_angle(noisy[:2]), noisy[2:]])
 
 
+def _delayed(signal: jax.Array, line: jax.Array, steps: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """`signal` of `steps` control steps before, from `line` (its past values along the first axis, newest
+    last, as long as the longest delay plus one), and the line with `signal` added."""
+    line = jnp.concatenate([line[1:], signal[None]])
+    return line[line.shape[0] - 1 - steps], line
+
+
 FEATURES = 6
 """Features of the task's trig observation: cos and sin of both angles, both velocities."""
 PRIVILEGED_PLANT = {
@@ -264,12 +278,15 @@ PRIVILEGED_PLANT = {
     "pendulum_mass": lambda sys, ids: sys.model.body_mass[ids.pendulum],
     "motor_gain": lambda sys, ids: sys.model.actuator_gainprm[ids.motor, 0],
     "cable_stiffness": lambda sys, ids: sys.model.jnt_stiffness[ids.arm_joint],
+    "observation_delay_steps": lambda sys, ids: sys.observation_delay_steps,
     "delay_steps": lambda sys, ids: sys.delay_steps,
     "voltage_offset": lambda sys, ids: sys.voltage_offset,
     "dead_zone": lambda sys, ids: sys.dead_zone,
+    "saturation": lambda sys, ids: jnp.minimum(sys.saturation, MAX_VOLTAGE_LIMIT),
 }
 """What the privileged critic knows of its world, by name: model fields the randomization draws
-(`qube.write_parameters`) and the drawn effects."""
+(`qube.write_parameters`) and the drawn effects (the saturation at most the largest voltage a task asks
+for, which it is when the effect is off)."""
 
 
 def draw_start(start: UniformStart | ClippedNormalStart, key: jax.Array) -> jax.Array:
