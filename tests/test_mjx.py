@@ -21,7 +21,7 @@ from qube_suite import suite  # noqa: E402
 from qube_suite.devices.qube import batch as qube_batch  # noqa: E402
 from qube_suite.devices.qube import simulation as qube  # noqa: E402
 from qube_suite.devices.qube import tasks as qube_tasks  # noqa: E402
-from qube_suite.mjx import brax_compat, environment, offered, training, worlds  # noqa: E402
+from qube_suite.mjx import brax_compat, environment, offered, processes, training, worlds  # noqa: E402
 from qube_suite.randomization import config as randomization_config  # noqa: E402
 from qube_suite.randomization.sampling import sample  # noqa: E402
 
@@ -34,7 +34,17 @@ EDGE_STATES = np.array([
 ])
 
 
-@pytest.mark.parametrize("task", offered.TASKS)
+WITHOUT_PROCESSES = [task for task in offered.TASKS if qube_tasks.SUITE[task]().process is None]
+"""Offered tasks whose rules are formulas of the measured state alone."""
+WITH_PROCESSES = {"rotor"}
+"""Offered tasks whose rules read processes too, each with a parity test of its own below."""
+
+
+def test_every_offered_task_has_a_rule_parity_test():
+    assert set(offered.TASKS) == set(WITHOUT_PROCESSES) | WITH_PROCESSES
+
+
+@pytest.mark.parametrize("task", WITHOUT_PROCESSES)
 def test_every_offered_tasks_rules_agree_with_the_numpy_task(task):
     env = environment.QubeMjx(task)
     numpy_task = qube_tasks.SUITE[task](observation="trig")
@@ -49,9 +59,78 @@ def test_every_offered_tasks_rules_agree_with_the_numpy_task(task):
         assert bool(done) == (not numpy_task.in_safe_set(qube_)), state
 
 
+class StateQube(environment.MeasuredQube):
+    """A numpy-path Qube whose measured state the test sets (Python floats), started by `reset_to`."""
+
+    def __init__(self):
+        super().__init__([0.0] * 4, 0.0)
+
+    def reset_to(self, state):
+        self.set(state, 0.0)
+
+    def set(self, state, time):
+        self._measured, self._time = [float(x) for x in np.float32(state)], float(time)
+
+
+def _spinning_states(steps=400, seed=0):
+    """Measured states whose pendulum angle turns one way, then back, then the other way, with jitter."""
+    rng = np.random.default_rng(seed)
+    rate = np.concatenate([np.full(steps // 2, 0.23), np.full(steps // 4, -0.3), np.full(steps // 4, -0.11)])
+    alpha = math.pi + np.cumsum(rate + rng.normal(0.0, 0.05, steps))
+    theta = np.concatenate([0.3 * np.sin(np.arange(steps - 20) / 40.0), np.linspace(0.3, 1.75, 20)])
+    states = np.stack([theta, (alpha + math.pi) % (2 * math.pi) - math.pi, rng.normal(0, 2, steps),
+                       rng.normal(0, 9, steps)], axis=1)
+    return states
+
+
+def _process_rules_run(env, states, start, key):
+    """The JAX environment's observations, rewards, dones and process states over measured `states`,
+    from `start`, as `QubeMjx.step` advances the task's processes."""
+    period = 1.0 / env.control_frequency
+    first = processes.first_process(env.task, environment.MeasuredQube(jnp.asarray(start, jnp.float32), 0.0),
+                                    key)
+
+    def body(process, inputs):
+        index, state, key = inputs
+        time = (index + 1) * period
+        process = processes.next_process(env.task, process, environment.MeasuredQube(state, time), key)
+        return process, (*env.rules(state, time, process), process)
+
+    keys = jax.random.split(key, len(states))
+    inputs = (jnp.arange(len(states)), jnp.asarray(states, jnp.float32), keys)
+    _, (obs, reward, done, process) = jax.jit(lambda first: jax.lax.scan(body, first, inputs))(first)
+    return np.asarray(obs), np.asarray(reward), np.asarray(done), process
+
+
+def test_the_rotors_rules_and_revolution_count_agree_with_the_numpy_task():
+    from qube_suite.episode_rules import judge_step
+
+    env = environment.QubeMjx("rotor")
+    states = _spinning_states()
+    numpy_task, qube_ = qube_tasks.SUITE["rotor"](observation="trig", random=0), StateQube()
+    numpy_task.initialize_episode(qube_)
+    start = np.array(qube_._measured)
+    obs, reward, done, process = _process_rules_run(env, states, start, jax.random.PRNGKey(0))
+    expected_reward, expected_done, revolutions = [], [], []
+    for step, state in enumerate(states, start=1):
+        qube_.set(state, step / 250.0)
+        rewarded, terminated, _ = judge_step(numpy_task, qube_, False, step, 2048)
+        np.testing.assert_allclose(obs[step - 1], numpy_task.observation_values(qube_), rtol=1e-5, atol=1e-5)
+        expected_reward.append(rewarded)
+        expected_done.append(terminated)
+        revolutions.append(numpy_task.revolutions)
+    np.testing.assert_array_equal(reward, expected_reward)
+    np.testing.assert_array_equal(done, expected_done)
+    np.testing.assert_array_equal(np.asarray(process.revolutions), revolutions)
+    assert sum(expected_reward) >= 6 and max(revolutions) >= 5 and any(expected_done)  # turns counted, an end
+    final = env.task.with_process(jax.tree.map(lambda leaf: leaf[-1], process))
+    assert final.revolutions == numpy_task.revolutions
+    assert final.succeeded([], True, 250.0) == numpy_task.succeeded([], True, 250.0)
+
+
 def test_a_task_the_backend_does_not_offer_is_refused_with_its_reason():
-    with pytest.raises(ValueError, match="rotor.*revolution counter"):
-        environment.QubeMjx("rotor")
+    with pytest.raises(ValueError, match="swingup_follow.*target schedules"):
+        environment.QubeMjx("swingup_follow")
     with pytest.raises(ValueError, match="'nonsense' is not one of them"):
         offered.check_task("nonsense")
     assert set(offered.TASKS) | set(offered.NOT_OFFERED) == set(suite.TASKS_BY_DOMAIN["qube"])
@@ -279,6 +358,24 @@ def test_an_episode_begun_by_brax_auto_reset_runs_as_a_fresh_one():
     # the second episode starts at the first one's start and gets the same actions
     np.testing.assert_allclose(measured[7:], measured[1:6], atol=1e-6)
     np.testing.assert_allclose(obs[7:], obs[1:6], atol=1e-6)
+
+
+def test_the_rotors_count_starts_again_in_an_episode_begun_by_brax_auto_reset():
+    from brax.envs.wrappers.training import AutoResetWrapper, EpisodeWrapper
+
+    env = AutoResetWrapper(EpisodeWrapper(environment.QubeMjx("rotor"), 6, 1))
+    actions = jnp.asarray([1.0, -1.0, 1.0, -1.0, 1.0, 1.0], jnp.float32)[:, None]
+
+    def body(state, action):
+        state = env.step(state, action)
+        return state, state.info["memory"]["task"]
+
+    first = env.reset(jax.random.PRNGKey(3))
+    _, count = jax.jit(lambda s: jax.lax.scan(body, s, jnp.concatenate([actions, actions])))(first)
+    turned = np.asarray(count.turned)
+    assert np.all(turned[1:6] != 0.0)
+    np.testing.assert_allclose(turned[7:], turned[1:6], atol=1e-6)
+    np.testing.assert_allclose(np.asarray(count.last_alpha)[7:], np.asarray(count.last_alpha)[1:6], atol=1e-6)
 
 
 def _brax_policy(observation_size, history, privileged=False):

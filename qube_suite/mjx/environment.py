@@ -31,7 +31,7 @@ from qube_suite.conventions import MAX_VOLTAGE_LIMIT
 from qube_suite.devices.qube import batch as qube_batch
 from qube_suite.devices.qube import simulation as qube
 from qube_suite.devices.qube import tasks as qube_tasks
-from qube_suite.mjx import offered
+from qube_suite.mjx import offered, processes
 from qube_suite.mjx import worlds as world_draws
 from qube_suite.policies.history import input_size
 from qube_suite.randomization import config as randomization_config
@@ -135,14 +135,16 @@ class QubeMjx(Env):
         data = mjx.make_data(self.sys.model)
         data = data.replace(qpos=data.qpos.at[self._positions].set(state[:2]),
                             qvel=data.qvel.at[self._velocities].set(state[2:]))
-        rng, noise_key = jax.random.split(rng)
+        rng, noise_key, task_key = jax.random.split(rng, 3)
         filtered = self._quantize(self.exact_state(data))  # the velocity filter settles on it
         measured = self._add_noise(filtered, noise_key)
+        process = processes.first_process(self.task, MeasuredQube(measured, data.time), task_key)
         memory = {"filter": filtered,
                   "commands": jnp.zeros(self._line_lengths["action_delay"], data.ctrl.dtype),
-                  "observations": jnp.tile(measured, (self._line_lengths["observation_delay"], 1))}
+                  "observations": jnp.tile(measured, (self._line_lengths["observation_delay"], 1)),
+                  "task": process}
         info = {"rng": rng, "measured": measured, "memory": memory, "first_memory": memory}
-        features, reward, done = self.rules(measured, data.time)
+        features, reward, done = self.rules(measured, data.time, process)
         past = jnp.tile(features, self.history)
         obs = self._observation(jnp.concatenate([features, past, jnp.zeros(self.history, features.dtype)]),
                                 data)
@@ -167,7 +169,7 @@ class QubeMjx(Env):
             data = mjx.step(self.sys.model, data)
         exact = self.exact_state(data)
         diverged = ~qube.plausible(exact[2], exact[3])
-        info["rng"], noise_key = jax.random.split(info["rng"])
+        info["rng"], noise_key, task_key = jax.random.split(info["rng"], 3)
         measured = self._quantize(exact)
         if "velocity_filter" in self._effects:
             last = memory["filter"]
@@ -177,8 +179,11 @@ class QubeMjx(Env):
             memory["filter"] = measured
         measured = self._add_noise(measured, noise_key)
         measured, memory["observations"] = self._delay_observation(measured, memory["observations"])
+        time = self.episode_time(data)
+        view = MeasuredQube(measured, time)
+        memory["task"] = processes.next_process(self.task, memory["task"], view, task_key)
         info["measured"], info["memory"] = measured, memory
-        features, reward, done = self.rules(measured, data.time)
+        features, reward, done = self.rules(measured, time, memory["task"])
         done = jnp.where(diverged, 1.0, done)
         inputs = self._policy_inputs(state.obs, features, volts)
         obs = jax.tree.map(lambda last, new: jnp.where(diverged, last, new), state.obs,
@@ -189,15 +194,22 @@ class QubeMjx(Env):
         """[theta, alpha, dtheta, dalpha] of a world (rad, rad/s), angles wrapped to (-pi, pi]."""
         return jnp.concatenate([wrap_angle(data.qpos[self._positions]), data.qvel[self._velocities]])
 
+    def episode_time(self, data: mjx.Data) -> jax.Array:
+        """The episode's time (s) as the task's processes read it: whole control periods, so that float32
+        steps of MuJoCo's clock do not move a scheduled change by a step."""
+        return jnp.round(data.time * self.control_frequency) / self.control_frequency
+
     # -- the task's rules ------------------------------------------------------------
 
-    def rules(self, measured: jax.Array, time: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+    def rules(self, measured: jax.Array, time: jax.Array, process=None
+              ) -> tuple[jax.Array, jax.Array, jax.Array]:
         """Observation, reward and done (1.0 outside the safe set) of the task for one measured
-        state [theta, alpha, dtheta, dalpha], from the task object's own formulas."""
-        view = MeasuredQube(measured, time)
-        obs = jnp.stack([jnp.asarray(value, measured.dtype) for value in self.task.observation_values(view)])
-        reward = jnp.asarray(self.task.get_reward(view), measured.dtype)
-        done = 1.0 - jnp.asarray(self.task.in_safe_set(view), measured.dtype)
+        state [theta, alpha, dtheta, dalpha] and the state of its processes (`processes`), from the task
+        object's own formulas."""
+        view, task = MeasuredQube(measured, time), self.task.with_process(process)
+        obs = jnp.stack([jnp.asarray(value, measured.dtype) for value in task.observation_values(view)])
+        reward = jnp.asarray(task.get_reward(view), measured.dtype)
+        done = 1.0 - jnp.asarray(task.in_safe_set(view), measured.dtype)
         return obs, reward, done
 
     # -- observations ----------------------------------------------------------------
