@@ -24,6 +24,7 @@ from qube_suite.devices.qube import tasks as qube_tasks  # noqa: E402
 from qube_suite.mjx import brax_compat, environment, offered, processes, training, worlds  # noqa: E402
 from qube_suite.randomization import config as randomization_config  # noqa: E402
 from qube_suite.randomization.sampling import sample  # noqa: E402
+from qube_suite.tasks.follow import TargetState  # noqa: E402
 
 EDGE_STATES = np.array([
     [0.0, 0.0, 0.0, 0.0], [0.0, math.pi, 0.0, 0.0], [0.3, -0.2, 1.0, -2.0],
@@ -36,7 +37,8 @@ EDGE_STATES = np.array([
 
 WITHOUT_PROCESSES = [task for task in offered.TASKS if qube_tasks.SUITE[task]().process is None]
 """Offered tasks whose rules are formulas of the measured state alone."""
-WITH_PROCESSES = {"rotor"}
+WITH_PROCESSES = {"rotor", "swingup_follow", "swingup_follow_sparse", "balance_follow",
+                  "balance_follow_sparse"}
 """Offered tasks whose rules read processes too, each with a parity test of its own below."""
 
 
@@ -47,7 +49,7 @@ def test_every_offered_task_has_a_rule_parity_test():
 @pytest.mark.parametrize("task", WITHOUT_PROCESSES)
 def test_every_offered_tasks_rules_agree_with_the_numpy_task(task):
     env = environment.QubeMjx(task)
-    numpy_task = qube_tasks.SUITE[task](observation="trig")
+    numpy_task = qube_tasks.SUITE[task]()
     states = np.concatenate([EDGE_STATES, np.random.default_rng(0).uniform(
         [-1.7, -math.pi, -20, -40], [1.7, math.pi, 20, 40], (40, 4))])
     for state in states:
@@ -107,7 +109,7 @@ def test_the_rotors_rules_and_revolution_count_agree_with_the_numpy_task():
 
     env = environment.QubeMjx("rotor")
     states = _spinning_states()
-    numpy_task, qube_ = qube_tasks.SUITE["rotor"](observation="trig", random=0), StateQube()
+    numpy_task, qube_ = qube_tasks.SUITE["rotor"](random=0), StateQube()
     numpy_task.initialize_episode(qube_)
     start = np.array(qube_._measured)
     obs, reward, done, process = _process_rules_run(env, states, start, jax.random.PRNGKey(0))
@@ -128,9 +130,104 @@ def test_the_rotors_rules_and_revolution_count_agree_with_the_numpy_task():
     assert final.succeeded([], True, 250.0) == numpy_task.succeeded([], True, 250.0)
 
 
+def _follow_states(steps, seed=0):
+    """Measured states near upright, the arm swinging through +-1.2 rad, leaving +-90 degrees at the end."""
+    rng = np.random.default_rng(seed)
+    theta = np.concatenate([1.2 * np.sin(np.arange(steps - 10) / 90.0), np.linspace(1.2, 1.7, 10)])
+    alpha = 0.4 * np.sin(np.arange(steps) / 37.0) + rng.normal(0.0, 0.02, steps)
+    return np.stack([theta, alpha, rng.normal(0, 2, steps), rng.normal(0, 5, steps)], axis=1)
+
+
+def _numpy_follow_run(task, task_kwargs, states, process_of_step=None):
+    """The numpy task's observations, rewards and dones over measured `states` (time: step / 250 s); with
+    `process_of_step`, its rules read that target state at each step instead of its own."""
+    from qube_suite.episode_rules import judge_step
+
+    numpy_task, qube_ = qube_tasks.SUITE[task](random=0, **task_kwargs), StateQube()
+    numpy_task.initialize_episode(qube_)
+    observations, rewards, dones = [], [], []
+    for step, state in enumerate(states, start=1):
+        qube_.set(state, step / 250.0)
+        rewarded, terminated, _ = judge_step(numpy_task, qube_, False, step, 2048)
+        if process_of_step is not None:
+            judged = numpy_task.with_process(process_of_step(step - 1))
+            rewarded, terminated = judged.get_reward(qube_), not judged.in_safe_set(qube_)
+            observations.append(judged.observation_values(qube_))
+        else:
+            observations.append(numpy_task.observation_values(qube_))
+        rewards.append(rewarded)
+        dones.append(terminated)
+    return np.array(observations), np.array(rewards), np.array(dones)
+
+
+@pytest.mark.parametrize(("task", "task_kwargs"), [
+    ("swingup_follow", {"target": "sine", "target_amplitude": 0.9, "target_frequency": 0.6}),
+    ("swingup_follow_sparse", {"target": "sine"}),
+    ("balance_follow", {"target": "fixed", "target_angle": -0.4}),
+    ("balance_follow_sparse", {"target": "sine", "target_amplitude": 1.0, "target_frequency": 1.0}),
+    ("swingup_follow", {"target": "file"}),
+])
+def test_a_follow_tasks_rules_and_timed_target_agree_with_the_numpy_task(task, task_kwargs, tmp_path):
+    if task_kwargs["target"] == "file":
+        path = tmp_path / "targets.csv"
+        path.write_text("time,target\n0,0.1\n0.5,-0.4\n1.1,0.7\n")
+        task_kwargs = {"target": str(path)}
+    env = environment.QubeMjx(task, task_kwargs=task_kwargs)
+    states = _follow_states(600)
+    obs, reward, done, _ = _process_rules_run(env, states, states[0], jax.random.PRNGKey(0))
+    expected_obs, expected_reward, expected_done = _numpy_follow_run(task, task_kwargs, states)
+    np.testing.assert_allclose(obs, expected_obs, rtol=1e-5, atol=2e-5)
+    np.testing.assert_allclose(reward, expected_reward, atol=1e-5)
+    np.testing.assert_array_equal(done, expected_done)
+    assert np.ptp(expected_reward) > 0.1 and any(expected_done)
+    assert len(set(np.round(expected_obs[:, 4], 6))) >= (1 if task_kwargs.get("target") == "fixed" else 3)
+
+
+@pytest.mark.parametrize("task_kwargs", [{"target": "steps", "target_hold_time": 0.8}, {"target": "jump"}])
+def test_a_follow_tasks_rules_read_its_random_targets_as_the_numpy_task_does(task_kwargs):
+    """A world draws its targets from its JAX key, so they differ from numpy's; the rules applied to them
+    are the numpy task's, and the steps change exactly every hold time."""
+    env = environment.QubeMjx("swingup_follow", task_kwargs=task_kwargs)
+    states = _follow_states(700)
+    obs, reward, done, process = _process_rules_run(env, states, states[0], jax.random.PRNGKey(5))
+    values, changes = np.asarray(process.value, np.float64), np.asarray(process.next_change, np.float64)
+    expected_obs, expected_reward, expected_done = _numpy_follow_run(
+        "swingup_follow", task_kwargs, states,
+        lambda step: TargetState(float(values[step]), float(changes[step])))
+    np.testing.assert_allclose(obs, expected_obs, rtol=1e-5, atol=2e-5)
+    np.testing.assert_allclose(reward, expected_reward, atol=1e-5)
+    np.testing.assert_array_equal(done, expected_done)
+    moments = np.flatnonzero(np.diff(values)) + 1  # index i: the step i + 1, at (i + 1) / 250 s
+    if task_kwargs["target"] == "steps":
+        np.testing.assert_array_equal(moments + 1, [200, 400, 600])  # every 0.8 s at 250 Hz
+        assert np.max(np.abs(values)) <= math.radians(60.0)
+    else:
+        assert 2 <= len(moments) <= 12  # about twice a second over 2.8 s
+
+
+@pytest.mark.parametrize("target", ["steps", "jump"])
+def test_random_targets_are_drawn_from_the_schedules_distribution(target):
+    env = environment.QubeMjx("swingup_follow", task_kwargs={"target": target})
+    schedule = env.task.schedule
+    start = environment.MeasuredQube(jnp.zeros(4, jnp.float32), 0.0)
+    keys = jax.random.split(jax.random.PRNGKey(1), 4000)
+    drawn = jax.vmap(lambda key: processes.first_process(env.task, start, key))(keys)
+    numpy_schedule = qube_tasks.SUITE["swingup_follow"](target=target).schedule
+    random = np.random.RandomState(1)
+    expected = []
+    for _ in range(4000):
+        numpy_schedule.reset(0.0, random)
+        expected.append(numpy_schedule.state)
+    for jax_values, numpy_values in zip(drawn, zip(*expected, strict=True), strict=True):  # targets, changes
+        jax_values, numpy_values = np.asarray(jax_values, np.float64), np.array(numpy_values)
+        assert abs(jax_values.mean() - numpy_values.mean()) <= 0.05 * numpy_values.std() + 1e-6
+        np.testing.assert_allclose(jax_values.std(), numpy_values.std(), rtol=0.05, atol=1e-6)
+        assert jax_values.min() >= min(numpy_values.min(), 0.0) - 0.01 * schedule.amplitude
+    targets = np.asarray(drawn.value)
+    assert np.max(np.abs(targets)) <= schedule.amplitude and np.min(targets) < -0.98 * schedule.amplitude
+
+
 def test_a_task_the_backend_does_not_offer_is_refused_with_its_reason():
-    with pytest.raises(ValueError, match="swingup_follow.*target schedules"):
-        environment.QubeMjx("swingup_follow")
     with pytest.raises(ValueError, match="'nonsense' is not one of them"):
         offered.check_task("nonsense")
     assert set(offered.TASKS) | set(offered.NOT_OFFERED) == set(suite.TASKS_BY_DOMAIN["qube"])
@@ -291,7 +388,7 @@ def test_the_numpy_policy_gives_the_brax_policys_actions():
     policy = training.export(params, "swingup", 3.0, {})
     states = np.random.default_rng(1).uniform([-1.5, -math.pi, -10, -30], [1.5, math.pi, 10, 30], (64, 4))
     env = environment.QubeMjx("swingup")
-    observations = jnp.stack([env.rules(jnp.asarray(s, jnp.float32), 0.0)[0] for s in states])
+    observations = jnp.stack([env.features(env.rules(jnp.asarray(s, jnp.float32), 0.0)[0]) for s in states])
     expected, _ = act(observations, jax.random.PRNGKey(2))
     np.testing.assert_allclose(policy.actions(states), 3.0 * np.asarray(expected[:, 0]), atol=1e-4)
 

@@ -21,8 +21,12 @@ state and the world's drawn plant and effects), for PPO with an asymmetric criti
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import jax
 import jax.numpy as jnp
+import numpy as np
 from brax.envs.base import Env, State
 from mujoco import mjx
 
@@ -33,6 +37,7 @@ from qube_suite.devices.qube import simulation as qube
 from qube_suite.devices.qube import tasks as qube_tasks
 from qube_suite.mjx import offered, processes
 from qube_suite.mjx import worlds as world_draws
+from qube_suite.policies import features
 from qube_suite.policies.history import input_size
 from qube_suite.randomization import config as randomization_config
 from qube_suite.tasks.starts import ClippedNormalStart, UniformStart
@@ -76,11 +81,12 @@ class QubeMjx(Env):
         history: the number of past observations and voltages the policy sees (0 for none).
         privileged_critic: give the critic the exact state and the world's plant (observation
             `{"state": ..., "privileged_state": ...}`).
+        task_kwargs: the task's settings, e.g. a follow task's target schedule (`{"target": "sine"}`).
     """
 
     def __init__(self, task: str = "swingup", randomization="none", control_frequency: float = 250.0,
                  voltage_limit: float | None = None, seed: int = 0, history: int = 0,
-                 privileged_critic: bool = False):
+                 privileged_critic: bool = False, task_kwargs: Mapping[str, Any] | None = None):
         offered.check_task(task)
         qube.check_control_frequency(control_frequency)
         if not (isinstance(history, int) and not isinstance(history, bool) and history >= 0):
@@ -88,7 +94,13 @@ class QubeMjx(Env):
         self.history = history
         self.privileged_critic = bool(privileged_critic)
         limit = {} if voltage_limit is None else {"voltage_limit": voltage_limit}
-        self.task = qube_tasks.SUITE[task](observation="trig", **limit)
+        task_kwargs = dict(task_kwargs or {})
+        for reserved in ("random", "observation", "worlds", "voltage_limit"):
+            if reserved in task_kwargs:
+                raise ValueError(f"task_kwargs: {reserved!r} is the environment's own (the start and the "
+                                 "targets draw from the JAX key; voltage_limit is a keyword of its own)")
+        self.task = qube_tasks.SUITE[task](**limit, **task_kwargs)
+        self._features = features.trig(np.zeros((1, self.task_observation_size))).shape[1]
         self.task_name = task
         self.config = randomization_config.load(randomization)
         self.control_frequency = float(control_frequency)
@@ -107,9 +119,10 @@ class QubeMjx(Env):
 
     @property
     def observation_size(self) -> int | dict[str, tuple[int]]:
-        policy = input_size(FEATURES, self.history)
+        policy = input_size(self._features, self.history)
         if self.privileged_critic:
-            return {"state": (policy,), "privileged_state": (policy + FEATURES + len(PRIVILEGED_PLANT),)}
+            critic = policy + EXACT_FEATURES + len(PRIVILEGED_PLANT)
+            return {"state": (policy,), "privileged_state": (critic,)}
         return policy
 
     @property
@@ -144,7 +157,8 @@ class QubeMjx(Env):
                   "observations": jnp.tile(measured, (self._line_lengths["observation_delay"], 1)),
                   "task": process}
         info = {"rng": rng, "measured": measured, "memory": memory, "first_memory": memory}
-        features, reward, done = self.rules(measured, data.time, process)
+        observation, reward, done = self.rules(measured, data.time, process)
+        features = self.features(observation)
         past = jnp.tile(features, self.history)
         obs = self._observation(jnp.concatenate([features, past, jnp.zeros(self.history, features.dtype)]),
                                 data)
@@ -183,9 +197,9 @@ class QubeMjx(Env):
         view = MeasuredQube(measured, time)
         memory["task"] = processes.next_process(self.task, memory["task"], view, task_key)
         info["measured"], info["memory"] = measured, memory
-        features, reward, done = self.rules(measured, time, memory["task"])
+        observation, reward, done = self.rules(measured, time, memory["task"])
         done = jnp.where(diverged, 1.0, done)
-        inputs = self._policy_inputs(state.obs, features, volts)
+        inputs = self._policy_inputs(state.obs, self.features(observation), volts)
         obs = jax.tree.map(lambda last, new: jnp.where(diverged, last, new), state.obs,
                            self._observation(inputs, data))
         return state.replace(pipeline_state=data, obs=obs, reward=reward, done=done, info=info)
@@ -203,9 +217,9 @@ class QubeMjx(Env):
 
     def rules(self, measured: jax.Array, time: jax.Array, process=None
               ) -> tuple[jax.Array, jax.Array, jax.Array]:
-        """Observation, reward and done (1.0 outside the safe set) of the task for one measured
-        state [theta, alpha, dtheta, dalpha] and the state of its processes (`processes`), from the task
-        object's own formulas."""
+        """The task's observation ([theta, alpha, dtheta, dalpha], and theta_target for a follow task),
+        reward and done (1.0 outside the safe set) for one measured state [theta, alpha, dtheta, dalpha]
+        and the state of its processes (`processes`), from the task object's own formulas."""
         view, task = MeasuredQube(measured, time), self.task.with_process(process)
         obs = jnp.stack([jnp.asarray(value, measured.dtype) for value in task.observation_values(view)])
         reward = jnp.asarray(task.get_reward(view), measured.dtype)
@@ -213,6 +227,16 @@ class QubeMjx(Env):
         return obs, reward, done
 
     # -- observations ----------------------------------------------------------------
+
+    @property
+    def task_observation_size(self) -> int:
+        """Values in the task's observation: 4, or 5 with a follow target."""
+        return 5 if self.task.follows_target else 4
+
+    def features(self, observation: jax.Array) -> jax.Array:
+        """The policy's features of the task's `observation`: the numpy policies' own feature map
+        (`qube_suite.policies.features.trig`)."""
+        return features.trig(observation[None])[0]
 
     def _policy_inputs(self, last_obs, features: jax.Array, volts: jax.Array) -> jax.Array:
         """The policy's input: `features` with the last input's features and voltages moved one step
@@ -279,8 +303,8 @@ def _delayed(signal: jax.Array, line: jax.Array, steps: jax.Array) -> tuple[jax.
     return line[line.shape[0] - 1 - steps], line
 
 
-FEATURES = 6
-"""Features of the task's trig observation: cos and sin of both angles, both velocities."""
+EXACT_FEATURES = 6
+"""Features of the exact state the privileged critic sees: cos and sin of both angles, both velocities."""
 PRIVILEGED_PLANT = {
     "arm_damping": lambda sys, ids: sys.model.dof_damping[ids.arm_dof],
     "pendulum_damping": lambda sys, ids: sys.model.dof_damping[ids.pendulum_dof],
