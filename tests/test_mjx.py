@@ -457,6 +457,27 @@ def test_an_episode_begun_by_brax_auto_reset_runs_as_a_fresh_one():
     np.testing.assert_allclose(obs[7:], obs[1:6], atol=1e-6)
 
 
+def test_a_random_target_starts_again_in_an_episode_begun_by_brax_auto_reset():
+    from brax.envs.wrappers.training import AutoResetWrapper, EpisodeWrapper
+
+    task_kwargs = {"target": "steps", "target_hold_time": 0.012}  # a new target every 3 steps
+    follow = environment.QubeMjx("swingup_follow", task_kwargs=task_kwargs)
+    env = AutoResetWrapper(EpisodeWrapper(follow, 7, 1))
+
+    def body(state, _):
+        state = env.step(state, jnp.zeros(1))
+        return state, (state.info["memory"]["task"], state.obs[-1])
+
+    first = env.reset(jax.random.PRNGKey(3))
+    _, (target, observed) = jax.jit(lambda s: jax.lax.scan(body, s, None, length=14))(first)
+    changes = np.asarray(target.next_change)
+    np.testing.assert_allclose(changes[:7], [0.012, 0.012, 0.024, 0.024, 0.024, 0.036, 0.036], atol=1e-6)
+    np.testing.assert_allclose(changes[7:], changes[:7], atol=1e-6)  # the second episode's schedule
+    values = np.asarray(target.value)
+    assert values[7] == values[8] == values[0] != values[9]  # the first target, a new one at 0.012 s
+    np.testing.assert_allclose(np.asarray(observed)[:6], values[:6])  # the observation's target
+
+
 def test_the_rotors_count_starts_again_in_an_episode_begun_by_brax_auto_reset():
     from brax.envs.wrappers.training import AutoResetWrapper, EpisodeWrapper
 
@@ -475,7 +496,7 @@ def test_the_rotors_count_starts_again_in_an_episode_begun_by_brax_auto_reset():
     np.testing.assert_allclose(np.asarray(count.last_alpha)[7:], np.asarray(count.last_alpha)[1:6], atol=1e-6)
 
 
-def _brax_policy(observation_size, history, privileged=False):
+def _brax_policy(observation_size, history, privileged=False, task_observation_size=4):
     """A Brax PPO policy with observation statistics for `observation_size`, its deterministic
     inference function and its export to a numpy policy of `history`."""
     from brax.training.acme import running_statistics, specs
@@ -495,7 +516,7 @@ def _brax_policy(observation_size, history, privileged=False):
                                         summed_variance=normalizer.summed_variance["state"])
     params = (normalizer, network.policy_network.init(jax.random.PRNGKey(1)), None)
     act = ppo_networks.make_inference_fn(network)(params, deterministic=True)
-    return act, training.export(params, "swingup", 3.0, {}, history)
+    return act, training.export(params, "swingup", 3.0, {}, history, task_observation_size)
 
 
 @pytest.mark.parametrize("privileged", [False, True])
@@ -520,6 +541,27 @@ def test_a_policy_with_history_acts_alike_on_jax_and_numpy(privileged):
     assert np.ptp(volts) > 0.3  # the voltages vary, so the history carries information
     np.testing.assert_allclose(volts, 3.0 * np.asarray(actions), atol=2e-4)
     assert policy.history == history
+
+
+def test_a_follow_policy_acts_alike_on_jax_and_numpy():
+    """The JAX environment's policy input for a follow task is the numpy policy's features of the task's
+    observation with its target, step by step."""
+    sine = {"target": "sine", "target_amplitude": 1.0, "target_frequency": 2.0}
+    env = environment.QubeMjx("swingup_follow", voltage_limit=3.0, history=2, task_kwargs=sine)
+    act, policy = _brax_policy(env.observation_size, 2, task_observation_size=5)
+    state = env.start(jnp.asarray([0.2, math.pi - 0.3, 1.0, -2.0], jnp.float32), jax.random.PRNGKey(0))
+
+    def body(state, key):
+        action, _ = act(state.obs, key)
+        observed = jnp.append(state.info["measured"], state.info["memory"]["task"].value)
+        return env.step(state, action), (observed, action[0])
+
+    keys = jax.random.split(jax.random.PRNGKey(4), 60)
+    _, (observed, actions) = jax.jit(lambda s: jax.lax.scan(body, s, keys))(state)
+    assert env.observation_size == 8 * 3 + 2 and policy.meta["observation_size"] == 5
+    assert np.ptp(np.asarray(observed)[:, 4]) > 0.5  # the target moves
+    volts = np.array([policy(observation) for observation in np.asarray(observed, np.float64)])
+    np.testing.assert_allclose(volts, 3.0 * np.asarray(actions), atol=2e-4)
 
 
 def test_the_privileged_critic_sees_the_exact_state_and_each_worlds_plant():
