@@ -401,6 +401,18 @@ def test_the_gpu_training_pages_examples_run():
         exec(compile(code, f"docs/gpu-training.md python block {index}", "exec"), {})
 
 
+def test_train_with_the_jax_backend_passes_a_follow_tasks_target_schedule(monkeypatch, tmp_path):
+    from qube_suite import cli
+
+    calls = []
+    result = training.Result(tmp_path / "policy.npz", [(1, 0.0, 0.0)], 1.0)
+    monkeypatch.setattr(training, "train", lambda task, **kwargs: calls.append((task, kwargs)) or result)
+    assert cli.main(["train", "--task", "balance_follow", "--backend", "jax", "--steps", "1000", "--target",
+                     "steps", "--target-hold-time", "1.5", "--out", str(tmp_path), "--quiet"]) == 0
+    assert calls[0][0] == "balance_follow"
+    assert calls[0][1]["task_kwargs"] == {"target": "steps", "target_hold_time": 1.5}
+
+
 def test_device_put_replicated_stacks_one_copy_per_device():
     tree = {"a": jnp.arange(3.0), "b": (jnp.ones((2, 2)),)}
     replicated = brax_compat.device_put_replicated(tree, jax.devices())

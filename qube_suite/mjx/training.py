@@ -59,10 +59,12 @@ class Result:
 
 def train(task: str = "swingup", steps: int = 60_000_000, randomization="none", seed: int = 0,
           out: str | pathlib.Path = "runs/jax", hyperparameters: Mapping[str, Any] | None = None,
-          progress: Callable[[str], None] | None = print, snapshots: bool = False) -> Result:
-    """Train `task` on MJX with Brax's PPO for `steps` env steps, worlds drawn from `randomization`;
-    write `out/policy.npz` and `out/training.json` (and with `snapshots`, the policy of every
-    evaluation as `out/snapshots/<steps>.npz`)."""
+          progress: Callable[[str], None] | None = print, snapshots: bool = False,
+          task_kwargs: Mapping[str, Any] | None = None) -> Result:
+    """Train `task` (with the settings `task_kwargs`, e.g. a follow task's target schedule) on MJX with
+    Brax's PPO for `steps` env steps, worlds drawn from `randomization`; write `out/policy.npz` and
+    `out/training.json` (and with `snapshots`, the policy of every evaluation as
+    `out/snapshots/<steps>.npz`)."""
     brax_compat.ensure_device_put_replicated()
     known = {**HYPERPARAMETERS, **ENVIRONMENT_SETTINGS}
     settings = {**known, **dict(hyperparameters or {})}
@@ -70,6 +72,7 @@ def train(task: str = "swingup", steps: int = 60_000_000, randomization="none", 
     if unknown:
         raise ValueError(f"unknown hyperparameters {sorted(unknown)}; known: {', '.join(known)}")
     world = {key: settings[key] for key in ENVIRONMENT_SETTINGS}
+    world["task_kwargs"] = dict(task_kwargs or {})
     env = QubeMjx(task, randomization=randomization, seed=seed, **world)
     eval_env = QubeMjx(task, randomization=randomization, seed=seed + 1_000_000, **world)
     critic = {"value_obs_key": "privileged_state"} if env.privileged_critic else {}
@@ -104,6 +107,7 @@ def train(task: str = "swingup", steps: int = 60_000_000, randomization="none", 
     wall_time = time.perf_counter() - start
     record = {"task": task, "steps": steps, "randomization": randomization if isinstance(randomization, str)
               else "custom", "seed": seed, "backend": "jax", "algo": "brax_ppo",
+              "task_kwargs": world["task_kwargs"],
               "hyperparameters": {key: list(v) if isinstance(v, tuple) else v for key, v in settings.items()},
               "evaluations": evaluations, "wall_time_s": wall_time,
               "devices": [str(device) for device in jax.devices()]}
