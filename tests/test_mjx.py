@@ -240,9 +240,45 @@ def test_every_effect_is_applied_or_refused_with_a_reason():
     assert not set(worlds.EFFECTS) & set(worlds.UNSUPPORTED_EFFECTS)
 
 
-def test_an_effect_the_backend_does_not_apply_is_refused():
-    with pytest.raises(ValueError, match="control_jitter"):
-        environment.QubeMjx("swingup", randomization="moderate")
+def test_a_jittered_period_is_split_into_physics_steps_as_the_numpy_domain_splits_it():
+    durations = np.array([0.0021, 0.0039999, 0.004, 0.0040001, 0.0056, 0.0079, 0.0081, 0.0119])
+    steps, timestep = qube.split_step(jnp.asarray(durations, jnp.float32))
+    expected_steps, expected_timestep = qube.split_step(durations)
+    np.testing.assert_array_equal(np.asarray(steps), expected_steps)
+    np.testing.assert_allclose(np.asarray(timestep), expected_timestep, rtol=1e-6)
+    assert set(expected_steps.tolist()) == {1, 2, 3}
+
+
+def test_control_jitter_lasts_the_drawn_periods_as_the_numpy_domain_steps_them():
+    """Each control period is drawn by the effect's formula and split as the numpy domain splits it: the
+    numpy domain, made to last the same periods, follows the same trajectory."""
+    config = {"effects": {"control_jitter": {"fraction": 0.4}}}
+    start, volts = np.array([0.1, math.pi - 0.2, 0.5, -1.0]), _voltages()
+    env = environment.QubeMjx("swingup", randomization=config, voltage_limit=10.0)
+    state = env.start(jnp.asarray(start, jnp.float32), jax.random.PRNGKey(0))
+
+    def body(state, v):
+        state = env.step(state, jnp.reshape(v / 10.0, (1,)))
+        return state, (env.exact_state(state.pipeline_state), state.pipeline_state.time)
+
+    _, (exact, times) = jax.jit(lambda s, v: jax.lax.scan(body, s, v))(state, jnp.asarray(volts, jnp.float32))
+    durations = np.diff(np.concatenate([[0.0], np.asarray(times, np.float64)]))
+    period = 1 / 250
+    assert np.all((durations > 0.6 * period - 1e-6) & (durations < 1.4 * period + 1e-6))
+    assert abs(durations.mean() - period) < 0.05 * period and durations.std() > 0.15 * period
+    assert np.any(durations > period + 1e-5)  # some periods take two physics steps
+    numpy_env = suite.load("qube", "swingup", task_kwargs={"voltage_limit": 10.0})
+    numpy_env.reset()
+    with numpy_env.physics.reset_context():
+        numpy_env.physics.reset_to(start)
+    replay = iter(durations.tolist())
+    numpy_env.physics.set_step_duration_model(lambda nominal: next(replay))
+    expected = []
+    for v in volts:
+        numpy_env.step(np.array([v]))
+        expected.append(numpy_env.physics.true_state())
+    np.testing.assert_allclose(np.asarray(exact), expected, atol=3e-3)
+    np.testing.assert_allclose(numpy_env.physics.time(), float(times[-1]), rtol=1e-5)
 
 
 @pytest.mark.parametrize("task", ["swingup", "balance", "dampen"])

@@ -40,6 +40,7 @@ from qube_suite.mjx import worlds as world_draws
 from qube_suite.policies import features
 from qube_suite.policies.history import input_size
 from qube_suite.randomization import config as randomization_config
+from qube_suite.randomization.timing import ControlJitter
 from qube_suite.tasks.starts import ClippedNormalStart, UniformStart
 from qube_suite.velocity_filter import filtered_velocity
 
@@ -106,6 +107,8 @@ class QubeMjx(Env):
         self.control_frequency = float(control_frequency)
         self.seed = int(seed)
         self._substeps = qube.substeps_per_control_period(control_frequency)
+        longest = (1.0 + world_draws.max_jitter_fraction(self.config)) / control_frequency
+        self._most_substeps = int(qube.split_step(longest)[0])
         self._line_lengths = {name: world_draws.max_delay_steps(self.config, name, control_frequency) + 1
                               for name in world_draws.DELAYS}
         self._effects = set(self.config.effects)
@@ -179,8 +182,7 @@ class QubeMjx(Env):
                               info["memory"])
         motor, memory["commands"] = self._actuate(volts, memory["commands"])
         data = data.replace(ctrl=jnp.reshape(motor, (1,)).astype(data.ctrl.dtype))
-        for _ in range(self._substeps):
-            data = mjx.step(self.sys.model, data)
+        data, info["rng"] = self._control_period(data, info["rng"])
         exact = self.exact_state(data)
         diverged = ~qube.plausible(exact[2], exact[3])
         info["rng"], noise_key, task_key = jax.random.split(info["rng"], 3)
@@ -208,9 +210,33 @@ class QubeMjx(Env):
         """[theta, alpha, dtheta, dalpha] of a world (rad, rad/s), angles wrapped to (-pi, pi]."""
         return jnp.concatenate([wrap_angle(data.qpos[self._positions]), data.qvel[self._velocities]])
 
+    def _control_period(self, data: mjx.Data, rng: jax.Array) -> tuple[mjx.Data, jax.Array]:
+        """`data` after one control period of MuJoCo's step, and the world's key `rng` after its draws:
+        the nominal period in `_substeps` equal steps, or with `control_jitter` a period drawn by the
+        effect's own formula (`ControlJitter.jittered`) in the fewest equal steps of at most MAX_TIMESTEP
+        (`qube.split_step`), as the numpy domain splits it; a batch runs the longest period's number of
+        steps, masked."""
+        if "control_jitter" not in self._effects:
+            for _ in range(self._substeps):
+                data = mjx.step(self.sys.model, data)
+            return data, rng
+        rng, key = jax.random.split(rng)
+        duration = ControlJitter.jittered(1.0 / self.control_frequency, self.sys.jitter_fraction,
+                                          jax.random.uniform(key, dtype=data.time.dtype))
+        substeps, timestep = qube.split_step(duration)
+        model = self.sys.model.replace(opt=self.sys.model.opt.replace(timestep=timestep))
+        for substep in range(self._most_substeps):
+            stepped = mjx.step(model, data)
+            run = substep < substeps
+            data = jax.tree.map(lambda new, old, run=run: jnp.where(run, new, old), stepped, data)
+        return data, rng
+
     def episode_time(self, data: mjx.Data) -> jax.Array:
         """The episode's time (s) as the task's processes read it: whole control periods, so that float32
-        steps of MuJoCo's clock do not move a scheduled change by a step."""
+        steps of MuJoCo's clock do not move a scheduled change by a step; with `control_jitter`, MuJoCo's
+        clock itself, as the numpy domain's `time()`."""
+        if "control_jitter" in self._effects:
+            return data.time
         return jnp.round(data.time * self.control_frequency) / self.control_frequency
 
     # -- the task's rules ------------------------------------------------------------

@@ -33,15 +33,12 @@ from qube_suite.randomization.sampling import sample
 from qube_suite.velocity_filter import VelocityFilter
 
 EFFECTS = ("quantization", "velocity_filter", "observation_noise", "observation_delay", "action_delay",
-           "voltage_offset", "dead_zone", "saturation")
+           "voltage_offset", "dead_zone", "saturation", "control_jitter")
 """Effects the JAX backend applies, in the numpy domains' order (`randomization.catalog.EFFECTS`)."""
 DELAYS = ("observation_delay", "action_delay")
 """Effects that are delay lines (`randomization.delays`), whose settings give a number of control steps."""
-UNSUPPORTED_EFFECTS = {
-    "control_jitter": "a control period of its own per world needs a timestep per world, which MJX's "
-                      "model options do not batch",
-}
-"""Effects it does not apply, with the reason: a config naming one is refused."""
+UNSUPPORTED_EFFECTS: dict[str, str] = {}
+"""Effects it does not apply, with the reason (none at present): a config naming one is refused."""
 
 FRICTION_PARAMETERS = ("arm_friction", "pendulum_friction")
 """Parameters that need MuJoCo's constraint stage, on for every world when any draws them."""
@@ -60,7 +57,8 @@ class Worlds:
     the velocity filter's pole and gain (1/s), `velocity_filter.filtered_velocity`;
     `noise_std`: [theta, alpha, dtheta, dalpha] (rad, rad/s); `observation_delay_steps`,
     `delay_steps`: observation and action delays (control steps); `voltage_offset`,
-    `dead_zone`, `saturation` (V; `saturation` infinite when the effect is off).
+    `dead_zone`, `saturation` (V; `saturation` infinite when the effect is off);
+    `jitter_fraction`: the control period's largest relative change (0 when off).
     """
 
     model: mjx.Model
@@ -73,6 +71,7 @@ class Worlds:
     voltage_offset: jax.Array
     dead_zone: jax.Array
     saturation: jax.Array
+    jitter_fraction: jax.Array
 
 
 def check_config(config: Randomization) -> None:
@@ -92,6 +91,12 @@ def max_delay_steps(config: Randomization, effect: str, control_frequency: float
     largest = {key: value.bounds()[1] if isinstance(value, Distribution) else value
                for key, value in settings.items()}
     return _delay_steps(largest, 1.0 / control_frequency)
+
+
+def max_jitter_fraction(config: Randomization) -> float:
+    """The largest control-jitter fraction `config` can draw (0 without the effect)."""
+    fraction = config.effects.get("control_jitter", {}).get("fraction", 0.0)
+    return float(fraction.bounds()[1] if isinstance(fraction, Distribution) else fraction)
 
 
 def _delay_steps(settings: Mapping, control_period: float) -> int:
@@ -176,6 +181,7 @@ def _effect_settings(effects: Mapping[str, Mapping], control_period: float) -> d
         "voltage_offset": np.float64(effects.get("voltage_offset", {}).get("voltage", 0.0)),
         "dead_zone": np.float64(effects.get("dead_zone", {}).get("voltage", 0.0)),
         "saturation": np.float64(effects.get("saturation", {}).get("voltage", math.inf)),
+        "jitter_fraction": np.float64(effects.get("control_jitter", {}).get("fraction", 0.0)),
     }
 
 
