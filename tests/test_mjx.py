@@ -618,7 +618,7 @@ def test_the_privileged_critic_sees_the_exact_state_and_each_worlds_plant():
                                                                           "low": 0.0, "high": 0.3}}}}
     env = environment.QubeMjx("swingup", randomization=config, history=1, privileged_critic=True)
     plain = environment.QubeMjx("swingup", randomization=config, history=1)
-    assert env.observation_size == {"state": (13,), "privileged_state": (13 + 6 + 13,)}
+    assert env.observation_size == {"state": (13,), "privileged_state": (13 + 6 + 14,)}
     batch, axes = env.draw_worlds(None, jax.random.split(jax.random.PRNGKey(0), 2))
     start = jnp.asarray([0.1, 3.0, 0.0, 0.0], jnp.float32)
 

@@ -345,6 +345,7 @@ PRIVILEGED_PLANT = {
     "voltage_offset": lambda sys, ids: sys.voltage_offset,
     "dead_zone": lambda sys, ids: sys.dead_zone,
     "saturation": lambda sys, ids: jnp.minimum(sys.saturation, MAX_VOLTAGE_LIMIT),
+    "jitter_fraction": lambda sys, ids: sys.jitter_fraction,
 }
 """What the privileged critic knows of its world, by name: model fields the randomization draws
 (`qube.write_parameters`) and the drawn effects (the saturation at most the largest voltage a task asks
