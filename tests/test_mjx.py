@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import pathlib
 import re
+from typing import NamedTuple
 
 import numpy as np
 import pytest
@@ -225,6 +226,15 @@ def test_random_targets_are_drawn_from_the_schedules_distribution(target):
         assert jax_values.min() >= min(numpy_values.min(), 0.0) - 0.01 * schedule.amplitude
     targets = np.asarray(drawn.value)
     assert np.max(np.abs(targets)) <= schedule.amplitude and np.min(targets) < -0.98 * schedule.amplitude
+
+
+def test_a_task_with_processes_the_backend_cannot_advance_is_refused(monkeypatch):
+    class Counted(NamedTuple):
+        count: float
+
+    monkeypatch.setattr(type(qube_tasks.SUITE["swingup"]()), "process", property(lambda task: Counted(0.0)))
+    with pytest.raises(ValueError, match="no transition for Swingup's processes"):
+        environment.QubeMjx("swingup")
 
 
 def test_a_task_the_backend_does_not_offer_is_refused_with_its_reason():

@@ -101,6 +101,7 @@ class QubeMjx(Env):
                 raise ValueError(f"task_kwargs: {reserved!r} is the environment's own (the start and the "
                                  "targets draw from the JAX key; voltage_limit is a keyword of its own)")
         self.task = qube_tasks.SUITE[task](**limit, **task_kwargs)
+        processes.check(self.task)
         self._features = features.trig(np.zeros((1, self.task_observation_size))).shape[1]
         self.task_name = task
         self.config = randomization_config.load(randomization)

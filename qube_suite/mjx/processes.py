@@ -20,6 +20,16 @@ from qube_suite.devices.qube.tasks.rotor import RevolutionCount
 from qube_suite.tasks.follow import RandomTargets, TargetState, TimedTargets
 
 
+def check(task) -> None:
+    """ValueError unless this module advances `task`'s processes."""
+    process = task.process
+    if process is None or isinstance(process, RevolutionCount) or (
+            isinstance(process, TargetState) and isinstance(task.schedule, (TimedTargets, RandomTargets))):
+        return
+    raise ValueError(f"the JAX backend has no transition for {type(task).__name__}'s processes "
+                     f"({type(process).__name__})")
+
+
 def first_process(task, physics, key: jax.Array):
     """The state of `task`'s processes at an episode's start (time 0), `physics` its first measured state
     (`environment.MeasuredQube`); `key` for the draws of random processes."""
