@@ -654,6 +654,14 @@ def test_the_privileged_critic_sees_the_exact_state_and_each_worlds_plant():
     assert not np.allclose(np.asarray(batch.dead_zone)[0], np.asarray(batch.dead_zone)[1])
 
 
+def test_task_settings_the_environment_sets_itself_are_refused():
+    for reserved in ({"random": 3}, {"observation": "trig"}, {"voltage_limit": 5.0}):
+        with pytest.raises(ValueError, match="set by the environment"):
+            environment.QubeMjx("swingup_follow", task_kwargs=reserved)
+    with pytest.raises(ValueError, match="unknown target schedule"):
+        environment.QubeMjx("swingup_follow", task_kwargs={"target": "zigzag"})
+
+
 def test_a_bad_history_is_refused():
     for bad in (-1, 2.5, True):
         with pytest.raises(ValueError, match="history must be an integer"):

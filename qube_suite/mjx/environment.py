@@ -6,10 +6,12 @@ training loop runs it as it is, with `Worlds.draw` as its domain randomization.
 What the world does each control step is the numpy `qube` domain's: the action
 (in [-1, 1]) times the task's voltage limit, through the actuator effects (delay,
 offset, dead zone, saturation) to the motor of `qube.xml`; one control period of
-MuJoCo's step (MJX, float32); the sensor effects (quantization, velocity filter,
-noise, delay) on the exact state. The task object itself (`qube_suite.tasks`) gives the reward, the safe
-set and the observation: its formulas run on JAX arrays (`tasks.elementwise`), and
-its start distribution (`tasks.starts`) is drawn with `jax.random`.
+MuJoCo's step (MJX, float32), jittered with `control_jitter`; the sensor effects
+(quantization, velocity filter, noise, delay) on the exact state. The task object
+itself (`qube_suite.tasks`) gives the reward, the safe set and the observation: its
+formulas run on JAX arrays (`tasks.elementwise`), on the state of its processes
+that the environment carries (`qube_suite.mjx.processes`), and its start
+distribution (`tasks.starts`) is drawn with `jax.random`.
 
 With `history=k` the observation is the policy's input with its last k observations
 and voltages, laid out as `qube_suite.policies.history` lays them out, so that an
@@ -98,8 +100,8 @@ class QubeMjx(Env):
         task_kwargs = dict(task_kwargs or {})
         for reserved in ("random", "observation", "worlds", "voltage_limit"):
             if reserved in task_kwargs:
-                raise ValueError(f"task_kwargs: {reserved!r} is the environment's own (the start and the "
-                                 "targets draw from the JAX key; voltage_limit is a keyword of its own)")
+                raise ValueError(f"task_kwargs: {reserved!r} is set by the environment, not the task's "
+                                 "settings (draws come from the JAX key; voltage_limit is a keyword)")
         self.task = qube_tasks.SUITE[task](**limit, **task_kwargs)
         processes.check(self.task)
         self._features = features.trig(np.zeros((1, self.task_observation_size))).shape[1]
