@@ -519,7 +519,8 @@ SINGLE_RUN_OPTIONS = ("algo", "steps", "seed", "randomization", "domain", "num_e
 """`train` options that make one training run instead of the task's recipe."""
 
 
-JAX_RUN_OPTIONS = ("steps", "seed", "randomization")
+JAX_RUN_OPTIONS = ("steps", "seed", "randomization", "target", "target_amplitude", "target_hold_time",
+                   "target_frequency", "target_angle")
 """`train` options of one run that the jax backend takes."""
 
 
@@ -557,7 +558,8 @@ def _train(args: argparse.Namespace) -> int:
 
 
 def _train_jax(args: argparse.Namespace, single: list[str]) -> int:
-    """`train --backend jax`: the task's jax recipe, or one run with --steps/--seed/--randomization."""
+    """`train --backend jax`: the task's jax recipe, or one run with --steps/--seed/--randomization and a
+    follow task's target options."""
     from qube_suite.training import recipes
 
     refused = [name for name in single if name not in JAX_RUN_OPTIONS]
@@ -576,7 +578,7 @@ def _train_jax(args: argparse.Namespace, single: list[str]) -> int:
     result = jax_training.train(args.task, steps=args.steps or 60_000_000, seed=args.seed or 0,
                                 randomization=args.randomization or "none",
                                 out=args.out or f"runs/jax_{args.task}_{args.seed or 0}",
-                                progress=None if args.quiet else print)
+                                progress=None if args.quiet else print, task_kwargs=_target_kwargs(args))
     print(f"trained {args.steps or 60_000_000} steps in {result.wall_time:.0f} s; last evaluation return "
           f"{result.evaluations[-1][1]:.1f}; policy {result.policy_path}")
     return 0

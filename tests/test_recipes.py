@@ -60,7 +60,9 @@ def test_every_shipped_policy_has_a_recipe_that_matches_its_training_record():
     ({"task": "swingup_follow", "task_kwargs": {"target": "zigzag"}}, "unknown target schedule 'zigzag'"),
     ({"task": "swingup_follow", "task_kwargs": {"random": 3}}, "drop 'random'"),
     ({"backend": "tpu"}, "backend must be one of sb3, jax"),
-    ({"backend": "jax", "task": "rotor"}, "not 'rotor': its revolution counter"),
+    ({"backend": "jax", "task": "nonsense"}, "'nonsense' is not one of them"),
+    ({"backend": "jax", "task": "swingup_follow", "task_kwargs": {"target": "zigzag"}},
+     "unknown target schedule 'zigzag'"),
     ({"backend": "jax", "exploring_starts": 0.5}, "a jax stage trains from scratch"),
     ({"calibration": "no_such_qube.yaml"}, "calibration: .*no such calibration file"),
     ({"calibration": parameters.REAL_QUBE_SERVO2}, "a calibrated PPO stage fine-tunes an earlier stage"),
@@ -163,7 +165,8 @@ def test_train_with_the_jax_backend_runs_its_recipe_and_refuses_options_it_canno
     assert cli.main(["train", "--task", "swingup", "--backend", "jax"]) == 0
     assert calls == [("swingup", "jax")]
     assert cli.main(["train", "--task", "swingup", "--backend", "jax", "--algo", "sac"]) == 2
-    refusal = "--backend jax takes --steps, --seed, --randomization of one run, not --algo"
+    refusal = "--backend jax takes --steps, --seed, --randomization, --target, --target-amplitude, " \
+              "--target-hold-time, --target-frequency, --target-angle of one run, not --algo"
     assert refusal in capsys.readouterr().err
     assert cli.main(["train", "--list-recipes", "--backend", "jax"]) == 0
     assert "| swingup | swingup 60 M (sim2real_frictionless)" in capsys.readouterr().out

@@ -59,10 +59,12 @@ class Result:
 
 def train(task: str = "swingup", steps: int = 60_000_000, randomization="none", seed: int = 0,
           out: str | pathlib.Path = "runs/jax", hyperparameters: Mapping[str, Any] | None = None,
-          progress: Callable[[str], None] | None = print, snapshots: bool = False) -> Result:
-    """Train `task` on MJX with Brax's PPO for `steps` env steps, worlds drawn from `randomization`;
-    write `out/policy.npz` and `out/training.json` (and with `snapshots`, the policy of every
-    evaluation as `out/snapshots/<steps>.npz`)."""
+          progress: Callable[[str], None] | None = print, snapshots: bool = False,
+          task_kwargs: Mapping[str, Any] | None = None) -> Result:
+    """Train `task` (with the settings `task_kwargs`, e.g. a follow task's target schedule) on MJX with
+    Brax's PPO for `steps` env steps, worlds drawn from `randomization`; write `out/policy.npz` and
+    `out/training.json` (and with `snapshots`, the policy of every evaluation as
+    `out/snapshots/<steps>.npz`)."""
     brax_compat.ensure_device_put_replicated()
     known = {**HYPERPARAMETERS, **ENVIRONMENT_SETTINGS}
     settings = {**known, **dict(hyperparameters or {})}
@@ -70,6 +72,7 @@ def train(task: str = "swingup", steps: int = 60_000_000, randomization="none", 
     if unknown:
         raise ValueError(f"unknown hyperparameters {sorted(unknown)}; known: {', '.join(known)}")
     world = {key: settings[key] for key in ENVIRONMENT_SETTINGS}
+    world["task_kwargs"] = dict(task_kwargs or {})
     env = QubeMjx(task, randomization=randomization, seed=seed, **world)
     eval_env = QubeMjx(task, randomization=randomization, seed=seed + 1_000_000, **world)
     critic = {"value_obs_key": "privileged_state"} if env.privileged_critic else {}
@@ -90,7 +93,8 @@ def train(task: str = "swingup", steps: int = 60_000_000, randomization="none", 
     def snapshot(step: int, _, params) -> None:
         if snapshots:
             moment = {"steps": int(step), "wall_time_s": time.perf_counter() - start}
-            policy = export(params, task, env.task.voltage_limit, moment, env.history)
+            policy = export(params, task, env.task.voltage_limit, moment, env.history,
+                            env.task_observation_size)
             mlp.save(policy, out / "snapshots" / f"{int(step)}.npz")
 
     ppo_settings = {key: value for key, value in settings.items() if key in HYPERPARAMETERS
@@ -103,20 +107,22 @@ def train(task: str = "swingup", steps: int = 60_000_000, randomization="none", 
     wall_time = time.perf_counter() - start
     record = {"task": task, "steps": steps, "randomization": randomization if isinstance(randomization, str)
               else "custom", "seed": seed, "backend": "jax", "algo": "brax_ppo",
+              "task_kwargs": world["task_kwargs"],
               "hyperparameters": {key: list(v) if isinstance(v, tuple) else v for key, v in settings.items()},
               "evaluations": evaluations, "wall_time_s": wall_time,
               "devices": [str(device) for device in jax.devices()]}
-    policy = export(params, task, env.task.voltage_limit, record, env.history)
+    policy = export(params, task, env.task.voltage_limit, record, env.history, env.task_observation_size)
     path = mlp.save(policy, out / "policy.npz")
     (out / "training.json").write_text(json.dumps(record, indent=1))
     return Result(path, evaluations, wall_time)
 
 
 def export(params, task: str, voltage_limit: float, record: Mapping[str, Any],
-           history: int = 0) -> mlp.MLPPolicy:
+           history: int = 0, observation_size: int = 4) -> mlp.MLPPolicy:
     """The numpy policy of Brax PPO's `params` (normalizer, policy, value): the policy network's layers
     up to the action's mean (its first output), normalised by the running statistics (of the policy's
-    part of the observation, with a privileged critic); `history`: the environment's."""
+    part of the observation, with a privileged critic); `history` and `observation_size` (4, or 5 with a
+    follow target): the environment's."""
     normalizer, policy = params[0], params[1]
     if isinstance(normalizer.mean, Mapping):  # a privileged critic's observation: the policy's part
         normalizer = normalizer.replace(mean=normalizer.mean["state"], std=normalizer.std["state"])
@@ -127,6 +133,7 @@ def export(params, task: str, voltage_limit: float, record: Mapping[str, Any],
     weights[-1], biases[-1] = weights[-1][:1], biases[-1][:1]  # the mean; the rest is the scale
     std = np.asarray(normalizer.std, dtype=np.float64)
     meta = {"format": mlp.FORMAT, "feature_map": "trig", "activation": ACTIVATION, "squash": True,
-            "epsilon": 0.0, "clip": 1e6, "voltage_limit": float(voltage_limit), "observation_size": 4,
-            "history": int(history), "task": task, "algo": "brax_ppo", "training": dict(record)}
+            "epsilon": 0.0, "clip": 1e6, "voltage_limit": float(voltage_limit),
+            "observation_size": int(observation_size), "history": int(history), "task": task,
+            "algo": "brax_ppo", "training": dict(record)}
     return mlp.MLPPolicy(weights, biases, np.asarray(normalizer.mean, dtype=np.float64), std**2, meta)

@@ -28,19 +28,17 @@ from mujoco import mjx
 from qube_suite.devices.qube import batch as qube_batch
 from qube_suite.devices.qube import simulation as qube
 from qube_suite.randomization.config import Randomization
+from qube_suite.randomization.distributions import Distribution
 from qube_suite.randomization.sampling import sample
 from qube_suite.velocity_filter import VelocityFilter
 
-EFFECTS = ("quantization", "velocity_filter", "observation_noise", "action_delay", "voltage_offset",
-           "dead_zone")
+EFFECTS = ("quantization", "velocity_filter", "observation_noise", "observation_delay", "action_delay",
+           "voltage_offset", "dead_zone", "saturation", "control_jitter")
 """Effects the JAX backend applies, in the numpy domains' order (`randomization.catalog.EFFECTS`)."""
-UNSUPPORTED_EFFECTS = {
-    "observation_delay": "not needed by any preset; a delay line of measured states is not written yet",
-    "saturation": "the tasks' voltage limits (at most 10 V) stay inside the amplifier's range",
-    "control_jitter": "a control period of its own per world needs a timestep per world, which MJX's "
-                      "model options do not batch",
-}
-"""Effects it does not apply, with the reason: a config naming one is refused."""
+DELAYS = ("observation_delay", "action_delay")
+"""Effects that are delay lines (`randomization.delays`), whose settings give a number of control steps."""
+UNSUPPORTED_EFFECTS: dict[str, str] = {}
+"""Effects it does not apply, with the reason (none at present): a config naming one is refused."""
 
 FRICTION_PARAMETERS = ("arm_friction", "pendulum_friction")
 """Parameters that need MuJoCo's constraint stage, on for every world when any draws them."""
@@ -57,8 +55,10 @@ class Worlds:
 
     `resolution`: encoder step (rad), 0 for exact angles; `filter_pole`, `filter_gain`:
     the velocity filter's pole and gain (1/s), `velocity_filter.filtered_velocity`;
-    `noise_std`: [theta, alpha, dtheta, dalpha] (rad, rad/s); `delay_steps`: action
-    delay (control steps); `voltage_offset`, `dead_zone` (V).
+    `noise_std`: [theta, alpha, dtheta, dalpha] (rad, rad/s); `observation_delay_steps`,
+    `delay_steps`: observation and action delays (control steps); `voltage_offset`,
+    `dead_zone`, `saturation` (V; `saturation` infinite when the effect is off);
+    `jitter_fraction`: the control period's largest relative change (0 when off).
     """
 
     model: mjx.Model
@@ -66,9 +66,12 @@ class Worlds:
     filter_pole: jax.Array
     filter_gain: jax.Array
     noise_std: jax.Array
+    observation_delay_steps: jax.Array
     delay_steps: jax.Array
     voltage_offset: jax.Array
     dead_zone: jax.Array
+    saturation: jax.Array
+    jitter_fraction: jax.Array
 
 
 def check_config(config: Randomization) -> None:
@@ -79,13 +82,29 @@ def check_config(config: Randomization) -> None:
             raise ValueError(f"the JAX backend does not apply the effect {name!r}: {why}")
 
 
-def max_delay_steps(config: Randomization) -> int:
-    """The longest action delay (control steps) `config` can draw."""
-    settings = config.effects.get("action_delay")
+def max_delay_steps(config: Randomization, effect: str, control_frequency: float) -> int:
+    """The longest delay (control steps) `config` can draw for `effect` (one of `DELAYS`) at
+    `control_frequency` (Hz): the delay line's length less one."""
+    settings = config.effects.get(effect)
     if settings is None:
         return 0
-    steps = settings.get("steps", 1)
-    return int(getattr(steps, "high", steps))
+    largest = {key: value.bounds()[1] if isinstance(value, Distribution) else value
+               for key, value in settings.items()}
+    return _delay_steps(largest, 1.0 / control_frequency)
+
+
+def max_jitter_fraction(config: Randomization) -> float:
+    """The largest control-jitter fraction `config` can draw (0 without the effect)."""
+    fraction = config.effects.get("control_jitter", {}).get("fraction", 0.0)
+    return float(fraction.bounds()[1] if isinstance(fraction, Distribution) else fraction)
+
+
+def _delay_steps(settings: Mapping, control_period: float) -> int:
+    """A delay's control steps from its drawn settings, as `randomization.delays.Delay` counts them:
+    `steps`, or `seconds` rounded to whole control periods."""
+    if "seconds" in settings:
+        return int(np.rint(settings["seconds"] / control_period))
+    return int(settings.get("steps", 1))
 
 
 def template_model(control_frequency: float, config: Randomization) -> mujoco.MjModel:
@@ -151,20 +170,18 @@ def _effect_settings(effects: Mapping[str, Mapping], control_period: float) -> d
     counts = effects.get("quantization", {}).get("counts_per_revolution")
     cutoff = effects.get("velocity_filter", {}).get("cutoff")
     pole, gain = (0.0, 0.0) if cutoff is None else _filter(cutoff, control_period)
-    delay = effects.get("action_delay")
-    if delay is None:
-        steps = 0
-    elif "seconds" in delay:
-        steps = int(np.rint(delay["seconds"] / control_period))
-    else:
-        steps = int(delay.get("steps", 1))
+    delays = {name: 0 if name not in effects else _delay_steps(effects[name], control_period)
+              for name in DELAYS}
     return {
         "resolution": np.float64(0.0 if counts is None else 2.0 * math.pi / counts),
         "filter_pole": np.float64(pole), "filter_gain": np.float64(gain),
         "noise_std": np.asarray(effects.get("observation_noise", {}).get("std", [0.0] * 4), dtype=np.float64),
-        "delay_steps": np.int32(steps),
+        "observation_delay_steps": np.int32(delays["observation_delay"]),
+        "delay_steps": np.int32(delays["action_delay"]),
         "voltage_offset": np.float64(effects.get("voltage_offset", {}).get("voltage", 0.0)),
         "dead_zone": np.float64(effects.get("dead_zone", {}).get("voltage", 0.0)),
+        "saturation": np.float64(effects.get("saturation", {}).get("voltage", math.inf)),
+        "jitter_fraction": np.float64(effects.get("control_jitter", {}).get("fraction", 0.0)),
     }
 
 

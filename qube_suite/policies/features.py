@@ -19,17 +19,21 @@ from collections.abc import Callable
 
 import numpy as np
 
+from qube_suite.tasks.elementwise import array_namespace, cos, sin
+
 
 def trig(observations: np.ndarray) -> np.ndarray:
-    """The `trig` features of observations of shape (n, 4) or (n, 5); float64 (n, 6) or (n, 8)."""
-    observations = np.asarray(observations, dtype=np.float64)
+    """The `trig` features of observations of shape (n, 4) or (n, 5); float64 (n, 6) or (n, 8). JAX arrays
+    (`qube_suite.mjx`) give JAX arrays of their own dtype."""
+    namespace = array_namespace(observations)
+    if namespace in (None, np):
+        observations, namespace = np.asarray(observations, dtype=np.float64), np
     theta, alpha = observations[:, 0], observations[:, 1]
-    columns = [np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha), observations[:, 2],
-               observations[:, 3]]
+    columns = [cos(theta), sin(theta), cos(alpha), sin(alpha), observations[:, 2], observations[:, 3]]
     if observations.shape[1] == 5:
         target = observations[:, 4]
         columns += [theta - target, target]
-    return np.stack(columns, axis=1)
+    return namespace.stack(columns, axis=1)
 
 
 def plain(observations: np.ndarray) -> np.ndarray:

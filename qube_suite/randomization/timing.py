@@ -31,4 +31,10 @@ class ControlJitter(Effect):
 
     def output(self, x, rows: np.ndarray | None):
         draws = generator_of(self._rng, rows).random(shape(x) or None)  # a float for one Qube
-        return x * (1.0 + per_env(self.fraction, rows) * (2.0 * draws - 1.0))
+        return self.jittered(x, per_env(self.fraction, rows), draws)
+
+    @staticmethod
+    def jittered(duration, fraction, uniform):
+        """The duration (s) of a step of nominal `duration` for a uniform variate in [0, 1): duration
+        (1 + u), u = fraction (2 uniform - 1); numbers or arrays (numpy's, or JAX's for `qube_suite.mjx`)."""
+        return duration * (1.0 + fraction * (2.0 * uniform - 1.0))

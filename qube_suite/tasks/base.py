@@ -218,6 +218,21 @@ class QubeTask(base.Task):
     def after_step(self, physics) -> None:
         """Advance the task's own processes (none by default)."""
 
+    @property
+    def process(self):
+        """The state of the task's own processes (a rotor's revolution count, a follow task's target),
+        which its rules read: None for a task without any, else a value (a NamedTuple) whose fields
+        are floats for one Qube and arrays for a batch."""
+        return None
+
+    def with_process(self, process) -> QubeTask:
+        """This task with its rules reading `process` (of `process`'s form, e.g. JAX arrays) in place of
+        its own: how a backend that carries the processes in its own state (`qube_suite.mjx`) applies
+        the task's rules. The task itself is left as it was."""
+        if process is not None:
+            raise ValueError(f"{type(self).__name__} has no processes, got {process!r}")
+        return self
+
     def in_safe_set(self, physics):
         """Whether the Qube may go on (bool, or one per world): the arm within +-90 degrees."""
         return abs(physics.arm_angle()) <= ARM_LIMIT

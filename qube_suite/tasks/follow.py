@@ -21,13 +21,16 @@ drawing from its own random state and following its own episode time.
 
 from __future__ import annotations
 
+import copy
 import csv
 import math
 import os
 import pathlib
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
+
+from qube_suite.tasks.elementwise import array_namespace, sin
 
 TARGET_LIMIT = math.radians(80.0)
 """Every schedule keeps its targets within +-80 degrees."""
@@ -42,12 +45,32 @@ _TIME_TOLERANCE = 1e-9
 """Slack (s) for comparing the episode's time with a scheduled change."""
 
 
+class TargetState(NamedTuple):
+    """A schedule's state as a value: the target `value` (rad) and, for a random schedule, when it is
+    next redrawn (`next_change`, s; None for a schedule that is a function of time). Floats for one
+    Qube, arrays for a batch or JAX arrays (`qube_suite.mjx`)."""
+
+    value: Any
+    next_change: Any = None
+
+
 class TargetSchedule:
     """Base of the schedules: `value` (rad, one per world in a batch), set by `reset` and `update`."""
 
     def __init__(self, worlds: int | None = None):
         self.worlds = worlds
         self.value = 0.0 if worlds is None else np.zeros(worlds)
+
+    @property
+    def state(self) -> TargetState:
+        """The schedule's current state."""
+        return TargetState(self.value)
+
+    def with_state(self, state: TargetState) -> TargetSchedule:
+        """A copy of this schedule in `state` (of `state`'s form, e.g. JAX arrays)."""
+        schedule = copy.copy(self)
+        schedule.value = state.value
+        return schedule
 
     def batch(self, worlds: int) -> TargetSchedule:
         """The same schedule for a batch of `worlds` Qubes."""
@@ -71,21 +94,41 @@ class RandomTargets(TargetSchedule):
         self.amplitude, self.hold_time = amplitude, hold_time
         self._next_change = 0.0 if worlds is None else np.zeros(worlds)
 
+    random_hold = False
+    """Whether a target is held for a random time: each redraw then draws a standard exponential
+    variate after the target's uniform one."""
+
     def batch(self, worlds: int) -> RandomTargets:
         return type(self)(self.amplitude, self.hold_time, worlds)
 
+    @property
+    def state(self) -> TargetState:
+        return TargetState(self.value, self._next_change)
+
+    def with_state(self, state: TargetState) -> RandomTargets:
+        schedule = super().with_state(state)
+        schedule._next_change = state.next_change
+        return schedule
+
     @staticmethod
-    def _due(time, next_change):
+    def due(time, next_change):
         """Whether the target is to be redrawn at `time` (s, float or array)."""
         raise NotImplementedError
 
-    def _change_after(self, due: float, time: float, random: np.random.RandomState) -> float:
-        """When (s) the target drawn at `time`, which was due at `due`, changes next."""
+    def target_from(self, uniform):
+        """The target (rad) for a uniform variate in [0, 1): U(-amplitude, amplitude), as
+        `RandomState.uniform` computes it."""
+        return -self.amplitude + 2.0 * self.amplitude * uniform
+
+    def change_after(self, due, time, exponential):
+        """When (s) the target drawn at `time`, which was due at `due`, changes next; `exponential`: a
+        standard exponential variate (None unless `random_hold`)."""
         raise NotImplementedError
 
     def _draw(self, due: float, time: float, random: np.random.RandomState, world: int | None) -> None:
-        value = random.uniform(-self.amplitude, self.amplitude)
-        next_change = self._change_after(due, time, random)
+        value = self.target_from(random.random_sample())
+        exponential = random.standard_exponential() if self.random_hold else None
+        next_change = self.change_after(due, time, exponential)
         if world is None:
             self.value, self._next_change = value, next_change
         else:
@@ -96,32 +139,34 @@ class RandomTargets(TargetSchedule):
 
     def update(self, time, random) -> None:
         if not isinstance(time, np.ndarray):
-            if self._due(time, self._next_change):
+            if self.due(time, self._next_change):
                 self._draw(self._next_change, time, random, None)
             return
-        for world in np.flatnonzero(self._due(time, self._next_change)).tolist():
+        for world in np.flatnonzero(self.due(time, self._next_change)).tolist():
             self._draw(float(self._next_change[world]), float(time[world]), random[world], world)
 
 
 class JumpTargets(RandomTargets):
     """Redrawn at exponentially distributed moments, mean `hold_time` apart (a Poisson process)."""
 
+    random_hold = True
+
     @staticmethod
-    def _due(time, next_change):
+    def due(time, next_change):
         return time > next_change
 
-    def _change_after(self, due: float, time: float, random: np.random.RandomState) -> float:
-        return time + random.exponential(self.hold_time)
+    def change_after(self, due, time, exponential):
+        return time + self.hold_time * exponential
 
 
 class StepTargets(RandomTargets):
     """Redrawn every `hold_time` seconds exactly."""
 
     @staticmethod
-    def _due(time, next_change):
+    def due(time, next_change):
         return time >= next_change - _TIME_TOLERANCE
 
-    def _change_after(self, due: float, time: float, random: np.random.RandomState) -> float:
+    def change_after(self, due, time, exponential):
         return due + self.hold_time
 
 
@@ -153,8 +198,7 @@ class SineTarget(TimedTargets):
         return SineTarget(self.amplitude, self.frequency, worlds)
 
     def at(self, time):
-        phase = 2.0 * math.pi * self.frequency * time
-        return self.amplitude * (np.sin(phase) if isinstance(time, np.ndarray) else math.sin(phase))
+        return self.amplitude * sin(2.0 * math.pi * self.frequency * time)
 
 
 class FixedTarget(TimedTargets):
@@ -182,6 +226,11 @@ class SequenceTargets(TimedTargets):
         return SequenceTargets(self.times, self.angles, worlds)
 
     def at(self, time):
+        namespace = array_namespace(time)
+        if namespace not in (None, np):  # JAX arrays: the table looked up in their own namespace
+            times = namespace.asarray(self.times)
+            index = namespace.searchsorted(times, time + _TIME_TOLERANCE, side="right") - 1
+            return namespace.asarray(self.angles)[index]
         index = np.searchsorted(self.times, np.asarray(time) + _TIME_TOLERANCE, side="right") - 1
         return self.angles[index] if isinstance(time, np.ndarray) else float(self.angles[index])
 

@@ -208,12 +208,11 @@ def check(recipe: Recipe) -> None:
                 offered.check_task(stage.task)
             except ValueError as error:
                 raise ValueError(f"{where}: {error}") from None
-            if (stage.teacher is not None or stage.init is not None or stage.task_kwargs
+            if (stage.teacher is not None or stage.init is not None
                     or stage.exploring_starts is not None or stage.keep != "policy.npz"
                     or stage.calibration is not None):
-                raise ValueError(f"{where}: a jax stage trains from scratch on the task's defaults: no "
-                                 "teacher, init, task_kwargs, exploring_starts or calibration, and it "
-                                 "keeps policy.npz")
+                raise ValueError(f"{where}: a jax stage trains from scratch: no teacher, init, "
+                                 "exploring_starts or calibration, and it keeps policy.npz")
         if stage.task not in suite.TASKS_BY_DOMAIN["qube"]:
             raise ValueError(f"{where}: unknown task {stage.task!r}")
         if stage.init is not None and stage.init not in seen:
@@ -311,7 +310,7 @@ def run(recipe: str | Recipe, out: str | pathlib.Path | None = None, progress: b
 
             jax_training.train(stage.task, steps=stage.steps, randomization=stage.randomization or "none",
                                seed=stage.seed, out=directory, hyperparameters=dict(stage.hyperparameters),
-                               progress=print if progress else None)
+                               progress=print if progress else None, task_kwargs=dict(stage.task_kwargs))
             continue
         if stage.teacher is not None:
             hyperparameters = dict(stage.hyperparameters)

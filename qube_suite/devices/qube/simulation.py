@@ -545,10 +545,14 @@ def substeps_per_control_period(control_frequency: float) -> int:
 
 def split_step(duration):
     """A control step lasting `duration` (s; a number or an array, one per Qube) split into the fewest
-    equal physics steps of at most MAX_TIMESTEP: (their number, their timestep in s), numbers or arrays."""
+    equal physics steps of at most MAX_TIMESTEP: (their number, their timestep in s), numbers or arrays
+    (numpy's, or JAX's for `qube_suite.mjx`)."""
     steps = duration / MAX_TIMESTEP - 1e-9
     if type(steps) is np.ndarray:
         nstep = np.maximum(1, np.ceil(steps)).astype(np.intp)
+    elif hasattr(steps, "__array_namespace__"):  # JAX arrays
+        namespace = steps.__array_namespace__()
+        nstep = namespace.maximum(1, namespace.ceil(steps)).astype(namespace.int32)
     else:  # one Qube: Python's ceil, 20x faster than numpy's on a number (a jittered step 1.19x -> 1.03x)
         nstep = max(1, math.ceil(steps))
     return nstep, duration / nstep

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import collections
+import copy
 
 import numpy as np
 from dm_env import specs
@@ -10,7 +11,7 @@ from dm_env import specs
 from qube_suite.conventions import GOAL_PENDULUM_TOLERANCE
 from qube_suite.devices.qube.tasks import rewards
 from qube_suite.tasks.base import QubeTask
-from qube_suite.tasks.follow import TARGET_LIMIT, make_schedule
+from qube_suite.tasks.follow import TARGET_LIMIT, TargetSchedule, TargetState, make_schedule
 
 
 class GoalTask(QubeTask):
@@ -40,6 +41,23 @@ class GoalTask(QubeTask):
     def target(self):
         """The arm's goal angle (rad): 0, or the current follow target (one per world in a batch)."""
         return 0.0 if self._target is None else self._target.value
+
+    @property
+    def schedule(self) -> TargetSchedule | None:
+        """The follow target's schedule (`qube_suite.tasks.follow`), or None for a fixed goal."""
+        return self._target
+
+    @property
+    def process(self) -> TargetState | None:
+        """The follow target's state, or None for a fixed goal."""
+        return None if self._target is None else self._target.state
+
+    def with_process(self, process: TargetState | None) -> GoalTask:
+        if self._target is None:
+            return super().with_process(process)
+        task = copy.copy(self)
+        task._target = self._target.with_state(process)
+        return task
 
     def pendulum_error(self, physics):
         """Pendulum angle from its goal (rad)."""

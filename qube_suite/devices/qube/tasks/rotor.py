@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import copy
 import math
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -50,12 +52,13 @@ class Rotor(QubeTask):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self._counter = RevolutionCounter(self.worlds)
+        zeros = 0.0 if self.worlds is None else np.zeros(self.worlds)
+        self._count = RevolutionCount.started(zeros)
 
     @property
     def revolutions(self):
         """Net full revolutions completed this episode (int; a float per world in a batch)."""
-        revolutions = self._counter.revolutions
+        revolutions = self._count.revolutions
         return revolutions if isinstance(revolutions, np.ndarray) else int(revolutions)
 
     start = UniformStart(-START_NOISE, START_NOISE, offset=(0.0, math.pi, 0.0, 0.0))
@@ -68,49 +71,58 @@ class Rotor(QubeTask):
     def initialize_episode(self, physics, world=None) -> None:
         super().initialize_episode(physics, world)
         alpha = physics.pendulum_angle()
-        self._counter.reset(alpha if world is None else float(alpha[world]), world)
+        if world is None:
+            self._count = RevolutionCount.started(alpha)
+        else:
+            started = RevolutionCount.started(float(alpha[world]))
+            self._count = RevolutionCount(*(np.where(np.arange(self.worlds) == world, new, kept)
+                                            for new, kept in zip(started, self._count, strict=True)))
 
     def after_step(self, physics) -> None:
-        self._counter.update(physics.pendulum_angle())
+        self._count = self._count.advanced(physics.pendulum_angle())
 
     def get_reward(self, physics):
-        return 1.0 * self._counter.completed
+        return 1.0 * self._count.completed
+
+    @property
+    def process(self) -> RevolutionCount:
+        return self._count
+
+    def with_process(self, process: RevolutionCount) -> Rotor:
+        task = copy.copy(self)
+        task._count = process
+        return task
 
 
-class RevolutionCounter:
-    """Net full turns of the pendulum since the start, from its angle sampled each step.
+class RevolutionCount(NamedTuple):
+    """Net full turns of the pendulum since the start, counted from its angle sampled each step.
 
-    For one Qube (`worlds=None`) its values are floats, for a batch arrays with one
-    value per world; `update` is the same arithmetic for both.
+    A value: `advanced` gives the next count. Its fields are floats for one Qube, arrays with
+    one value per world for a batch (numpy) or JAX arrays (`qube_suite.mjx`), with the same
+    arithmetic for all.
     """
 
-    def __init__(self, worlds: int | None = None):
-        def zeros():
-            return 0.0 if worlds is None else np.zeros(worlds)
+    last_alpha: Any
+    """The pendulum angle (rad) last counted from."""
+    turned: Any
+    """Angle turned since the start (rad), signed."""
+    revolutions: Any
+    """Most net full turns reached so far (a whole number)."""
+    completed: Any
+    """Whether the last step completed a new turn."""
 
-        self.last_alpha = zeros()
-        self.turned = zeros()
-        """Angle turned since the start (rad), signed."""
-        self.revolutions = zeros()
-        """Most net full turns reached so far (a whole number)."""
-        self.completed = zeros() > 0.0
-        """Whether the last update completed a new turn."""
+    @classmethod
+    def started(cls, alpha) -> RevolutionCount:
+        """The count at an episode's start, from pendulum angle `alpha` (rad)."""
+        zero = 0.0 * alpha
+        return cls(alpha, zero, zero, zero > 0.0)
 
-    def reset(self, alpha: float, world: int | None = None) -> None:
-        """Start counting from pendulum angle `alpha` (rad) (in `world` of a batch)."""
-        if world is None:
-            self.last_alpha, self.turned, self.revolutions, self.completed = alpha, 0.0, 0.0, False
-        else:
-            self.last_alpha[world], self.turned[world], self.revolutions[world] = alpha, 0.0, 0.0
-            self.completed[world] = False
-
-    def update(self, alpha) -> None:
-        """Count the turn from the last angle to `alpha` (rad, wrapped to (-pi, pi])."""
-        self.turned = self.turned + wrap_angle(alpha - self.last_alpha)
-        self.last_alpha = alpha
-        revolutions = abs(self.turned) // TAU
-        self.completed = revolutions > self.revolutions
-        self.revolutions = maximum(self.revolutions, revolutions)
+    def advanced(self, alpha) -> RevolutionCount:
+        """The count after the turn from the last angle to `alpha` (rad, wrapped to (-pi, pi])."""
+        turned = self.turned + wrap_angle(alpha - self.last_alpha)
+        revolutions = abs(turned) // TAU
+        return RevolutionCount(alpha, turned, maximum(self.revolutions, revolutions),
+                               revolutions > self.revolutions)
 
 
 @register("benchmarking")
