@@ -1,4 +1,5 @@
-"""The `wide` randomization preset covers the held-out plant ranges of a Qube nobody described."""
+"""The `wide` randomization preset covers the held-out plant ranges of a Qube nobody described, and the
+calibrated real Qube-Servo 2."""
 
 import numpy as np
 
@@ -20,13 +21,24 @@ def test_wide_covers_every_held_out_range():
         assert lower <= (1 - half_width) * nominal * (1 + 1e-12), name
         assert upper >= (1 + half_width) * nominal * (1 - 1e-12), name
     for name, high in HELD_OUT_ABSOLUTE.items():
-        assert wide.parameters[name].bounds(parameters.NOMINAL[name]) == (0.0, high), name
+        lower, upper = wide.parameters[name].bounds(parameters.NOMINAL[name])
+        assert lower == 0.0 and upper >= high, name
 
 
-def test_wide_keeps_the_sim2real_effects():
-    wide, sim2real = load("wide"), load("sim2real")
-    assert set(wide.effects) == set(sim2real.effects) == {"quantization", "velocity_filter", "action_delay"}
-    assert wide.effects == sim2real.effects
+def test_wide_holds_the_calibrated_real_qube_and_its_effects():
+    """Every parameter the recordings of a real Qube-Servo 2 calibrated, and its latency and dead zone, lie
+    inside `wide`'s ranges, as they lie inside `real_qube`'s."""
+    wide, real_qube = load("wide"), load("real_qube")
+    calibrated = parameters.values_of(parameters.REAL_QUBE_SERVO2)
+    for name, distribution in wide.parameters.items():
+        lower, upper = distribution.bounds(parameters.NOMINAL[name])
+        assert lower <= calibrated[name] <= upper, name
+    assert set(wide.effects) == set(real_qube.effects)
+    for name in ("action_delay", "voltage_offset", "dead_zone"):
+        assert wide.effects[name] == real_qube.effects[name], name
+    effects = parameters.effects_of(parameters.REAL_QUBE_SERVO2)
+    assert effects["latency_seconds"] <= wide.effects["action_delay"]["seconds"].high
+    assert effects["voltage_deadzone"] <= wide.effects["dead_zone"]["voltage"].high
 
 
 def test_wide_draws_valid_plants_that_fill_the_ranges():

@@ -13,13 +13,18 @@
   amplifier's limits are left out: within the tasks' voltage limits (3 V by
   default, at most 10 V) they act rarely if ever (+-15 V range, 1.8 A current
   limit against 3 V / 8.4 ohm = 0.36 A at stall).
-- `wide`: `sim2real`'s effects, and parameter ranges that cover a Qube nobody
-  has described: pendulum mass +-30 %, pendulum length +-10 %, motor resistance
-  +-25 %, torque and back-EMF constants +-15 %, rotor inertia +-30 %, Coulomb
-  friction 0 to 4e-3 N m on the arm and 0 to 2e-4 N m on the pendulum (four
-  times the substitute's plant), cable stiffness 0 to 4e-3 N m/rad; arm mass
-  and length and both dampings as in `sim2real`. For policies trained once for
-  many plants (with observation history: `qube_suite.training`).
+- `wide`: parameter ranges that cover a Qube nobody has described, and the Qube-Servo 2
+  that recordings described (`real_qube`'s calibrated values): pendulum mass +-30 %,
+  pendulum length +-10 %, motor resistance +-25 %, torque and back-EMF constants 0.8 to
+  1.15 times, rotor inertia 0.7 to 12 times (log-uniform), arm damping 0.3 to 40 times and
+  pendulum damping 0.3 to 10 times, Coulomb friction 0 to 4e-3 N m on the arm and 0 to 2e-4
+  N m on the pendulum (four times the substitute's plant), cable stiffness 0 to 5e-3
+  N m/rad; arm mass and length as in `sim2real`; effects: `sim2real`'s encoders and
+  velocity filter, `real_qube`'s command delay (0 to 12 ms), voltage offset and dead zone.
+  For policies trained once for many plants (with observation history:
+  `qube_suite.training`). Until 2026-11-28 its rotor inertia stopped at 1.3 times, its
+  dampings at 3, its delay at one control step, without offset or dead zone: a Qube like
+  the real one was outside it.
 - `real_qube`: ranges around what recordings of a real Qube-Servo 2 identified
   (`qube_suite.devices.qube.parameters.REAL_QUBE_SERVO2`, TU Darmstadt's unit), each containing its
   calibrated value and its interval: rotor inertia 4 to 12 times the published motor's
@@ -33,8 +38,8 @@
   recordings' sessions differ: 0 to 6e-4 N m, the torque of 0 to 0.13 V), with
   `sim2real`'s encoders and velocity filter. Not drawn: the cable's slack band (the
   preset's spring is linear) and the pendulum encoder's offset (0.0014 rad, below one
-  encoder count). `sim2real` and `wide` stay as they were: the shipped policies and
-  the published transfer figures were made with them.
+  encoder count). `sim2real` stays as it was: the shipped follow policies and the
+  published sim-to-real figures were made with it.
 - `sim2real_frictionless`: `sim2real` without its Coulomb friction: for the JAX backend
   (`qube_suite.mjx`), where friction is a constraint that makes each step about ten
   times dearer; policies trained under it met the swing-up recipe's targets on the
@@ -115,16 +120,18 @@ PRESETS: dict[str, dict[str, Any]] = {
         "parameters": {
             "pendulum_mass": _scale(0.7, 1.3), "pendulum_length": _scale(0.9, 1.1),
             "arm_mass": _TOLERANCE, "arm_length": _TOLERANCE,
-            "motor_resistance": _scale(0.75, 1.25), "motor_torque_constant": _scale(0.85, 1.15),
-            "motor_back_emf": _scale(0.85, 1.15), "rotor_inertia": _scale(0.7, 1.3),
-            "arm_damping": _log_scale(0.3, 3.0), "pendulum_damping": _log_scale(0.3, 3.0),
+            "motor_resistance": _scale(0.75, 1.25), "motor_torque_constant": _scale(0.8, 1.15),
+            "motor_back_emf": _scale(0.8, 1.15), "rotor_inertia": _log_scale(0.7, 12.0),
+            "arm_damping": _log_scale(0.3, 40.0), "pendulum_damping": _log_scale(0.3, 10.0),
             "arm_friction": _absolute(0.0, 4e-3), "pendulum_friction": _absolute(0.0, 2e-4),
-            "cable_stiffness": _absolute(0.0, 4e-3),
+            "cable_stiffness": _absolute(0.0, 5e-3),
         },
         "effects": {
             "quantization": {"counts_per_revolution": 2048},
             "velocity_filter": {"cutoff": 50.0},
-            "action_delay": {"steps": {"distribution": "uniform", "low": 0, "high": 1}},
+            "action_delay": {"seconds": {"distribution": "uniform", "low": 0.0, "high": 0.012}},
+            "voltage_offset": {"voltage": {"distribution": "uniform", "low": -0.2, "high": 0.2}},
+            "dead_zone": {"voltage": {"distribution": "uniform", "low": 0.0, "high": 0.15}},
         },
     },
     "real_qube": {

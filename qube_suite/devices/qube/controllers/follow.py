@@ -108,7 +108,8 @@ class FollowController(Controller):
         return min(max(-float(self.gain @ error), -self.voltage_limit), self.voltage_limit)
 
 
-def arm_set_point(theta: float, target: float) -> float:
-    """The arm set-point (rad) for the arm at `theta` and the target `target` (rad)."""
+def arm_set_point(theta: float, target: float, step: float = REFERENCE_STEP) -> float:
+    """The arm set-point (rad) for the arm at `theta` and the target `target` (rad), at most `step`
+    (rad) from the arm."""
     target = min(max(target, -REFERENCE_LIMIT), REFERENCE_LIMIT)
-    return theta + min(max(target - theta, -REFERENCE_STEP), REFERENCE_STEP)
+    return theta + min(max(target - theta, -step), step)

@@ -44,12 +44,7 @@ from qube_suite.angles import wrap_angle
 from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
 from qube_suite.devices.qube.controllers._ilqr import Kernel
 from qube_suite.devices.qube.controllers.base import Controller
-from qube_suite.devices.qube.controllers.follow import (
-    REFERENCE_LIMIT,
-    REFERENCE_STEP,
-    TargetSpeed,
-    arm_set_point,
-)
+from qube_suite.devices.qube.controllers.follow import REFERENCE_LIMIT, TargetSpeed, arm_set_point
 from qube_suite.devices.qube.controllers.lqr import BalanceLQR
 from qube_suite.devices.qube.controllers.model import RigidBodyModel
 from qube_suite.devices.qube.controllers.observer import UNMODELLED_TORQUE
@@ -57,6 +52,10 @@ from qube_suite.devices.qube.controllers.swingup import CATCH_VOLTAGE, RELEASE_V
 
 DIAGONAL = (np.arange(4), np.arange(4))
 
+REFERENCE_STEP = math.radians(20.0)
+"""Largest distance (rad) of the plan's first arm reference, and of its swing-up's and LQR plans' arm
+set-point, from the arm. `FollowController`'s own is shorter (12.5 degrees: its one saturated LQR
+dropped a real Qube's pendulum at 20); a plan that looks ahead keeps the figures measured with 20."""
 REFERENCE_SPEED = 3.0
 """Fastest the arm reference moves away from the arm over the horizon (rad/s), beyond `REFERENCE_STEP`.
 
@@ -202,7 +201,8 @@ class IterativeLQR(Controller):
         level = self._release_level if self.balancing else self._catch_level
         self.balancing = self.balance.cost_to_go(np.array([0.0, wrap_angle(state[1]), 0.0, state[3]])) < level
         if self.swingup is not None:
-            volts = self.swingup.voltage_for(state, arm_set_point(state[0], target))  # it learns every swing
+            # the swing-up learns every swing
+            volts = self.swingup.voltage_for(state, arm_set_point(state[0], target, REFERENCE_STEP))
             if not self.balancing:
                 self._started = False  # the plan starts afresh at the next catch
                 return volts
@@ -241,7 +241,7 @@ class IterativeLQR(Controller):
         kernel = self.kernel
         shifted = kernel.rollout_cost(state, reference, reference_speed)
         plan = kernel.U.copy(), kernel.X.copy(), kernel.K.copy()
-        self._lqr_plan(arm_set_point(state[0], target), state[1])
+        self._lqr_plan(arm_set_point(state[0], target, REFERENCE_STEP), state[1])
         if not kernel.rollout_cost(state, reference, reference_speed) < shifted:
             kernel.U[:], kernel.X[:], kernel.K[:] = plan
 
@@ -262,7 +262,7 @@ class IterativeLQR(Controller):
         kernel = self.kernel
         set_point = min(max(target, -REFERENCE_LIMIT), REFERENCE_LIMIT)
         if self.swingup is not None:
-            self._lqr_plan(arm_set_point(state[0], target), state[1])
+            self._lqr_plan(arm_set_point(state[0], target, REFERENCE_STEP), state[1])
         elif self.balance.cost_to_go(state, set_point) < self._catch_level:
             self._lqr_plan(set_point, 0.0)
         else:
