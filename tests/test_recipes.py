@@ -179,8 +179,8 @@ def test_listing_shows_every_recipe_with_its_steps_and_time(capsys):
     for row, recipe in zip(rows, RECIPES.values(), strict=True):
         cells = row.split(" | ")
         assert cells[2] == f"{recipe.steps / 1e6:g} M" and cells[3] == f"{recipe.minutes:g} min"
-    assert "swingup 2 M imitating swingup (wide) → swingup 1 M (wide)" in rows[
-        list(RECIPES).index("swingup_adaptive")]
+    assert "swingup_follow 2 M imitating follow (sim2real, target=sine) → swingup_follow 1 M (sim2real, " \
+           "target=sine)" in rows[list(RECIPES).index("swingup_follow_sine")]
     assert "| swingup 1.5 M imitating swingup (calibrated on real_qube_servo2.yaml) |" in rows[
         list(RECIPES).index("swingup")]
 

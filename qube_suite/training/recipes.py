@@ -112,6 +112,18 @@ SMALL_PPO_STEPS = {"init_log_std": -4.0, "learning_rate": 3e-5, "clip_range": 0.
 """PPO after imitation: small exploration noise (gSDE log-std -4, the imitation's -1) and small
 steps; with -1 or -2, or a learning rate of 1e-4, it undoes the imitated feedback."""
 
+
+
+def imitated_for_the_real_qube(task: str, teacher: str, steps: int, minutes: float,
+                               history: int = 0) -> Stage:
+    """A stage imitating controller `teacher` on `task` in worlds drawn about the calibrated real
+    Qube-Servo 2 (`REAL_QUBE_SERVO2`), with `history` past steps: how a controller that holds on a real
+    Qube becomes a policy that does (`steps` environment steps, about `minutes` min)."""
+    hyperparameters = {"policy_kwargs": IMITATION_ACTOR, **({"history": history} if history else {})}
+    return Stage("imitation", task, steps, minutes, teacher=teacher, calibration=REAL_QUBE_SERVO2,
+                 hyperparameters=hyperparameters)
+
+
 GENTLE_ILQR = {"swing_up": "energy", "reference_speed": 2.0, "cost": {"lean_limit": math.radians(8.0)}}
 """`ilqr` as a teacher of steps: `swingup`'s energy swing-up (the planned one has not been learnt), a
 2 rad/s reference ramp and an 8 degree lean limit, which keep the pendulum up under `sim2real`."""
@@ -136,26 +148,23 @@ RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
         # PPO's swing-up (balance, then swing-up, then `sim2real`) and its fine-tunes fail a real Qube's
         # heavy arm and 6 ms latency (docs/calibration.md); the swingup controller, which swings that
         # Qube up, imitated without history. Small PPO steps from here undid it (1870 to 700 in 0.6 M steps).
-        Stage("imitation", "swingup", 1_500_000, 10, teacher="swingup", calibration=REAL_QUBE_SERVO2,
-              hyperparameters={"policy_kwargs": IMITATION_ACTOR}),),
+        imitated_for_the_real_qube("swingup", "swingup", 1_500_000, 10),),
         "ppo:swingup: 1894 in simulation, 1885 on the substitute, 100 % success on both domains, on the "
         "calibrated real Qube measured as its board measures and on the real-Qube substitute"),
     Recipe("swingup_follow", (
         # PPO's swing-up chain with a follow stage failed a real Qube as ppo:swingup did; the follow
         # controller, which keeps a real Qube up, imitated in worlds about the calibrated real Qube-Servo 2,
         # with 8 past steps (without, 50 % on the real-Qube substitute)
-        Stage("imitation", "swingup_follow", 1_500_000, 15, teacher="follow", calibration=REAL_QUBE_SERVO2,
-              hyperparameters={"history": 8, "policy_kwargs": IMITATION_ACTOR}),),
+        imitated_for_the_real_qube("swingup_follow", "follow", 1_500_000, 15, history=8),),
         "ppo:swingup_follow: 1816 in simulation, 1791 on the substitute, 100 % success on both domains "
         "and on the calibrated real Qube, 90 to 100 % on the real-Qube substitute"),
     Recipe("rotor", (
         # PPO's spinner (60 turns on the nominal model) made 1 to 5 on the real-Qube substitute, and
         # fine-tuned for the calibrated Qube, 1 to 2: the rotor controller, which spins a real Qube,
         # imitated in worlds about the calibrated real Qube-Servo 2
-        Stage("imitation", "rotor", 1_000_000, 8, teacher="rotor", calibration=REAL_QUBE_SERVO2,
-              hyperparameters={"policy_kwargs": IMITATION_ACTOR}),),
-           "ppo:rotor: 29 revolutions in simulation, 27 on the substitute, 28 on the real-Qube "
-           "substitute, 100 % success"),
+        imitated_for_the_real_qube("rotor", "rotor", 1_000_000, 8),),
+        "ppo:rotor: 29 revolutions in simulation, 27 on the substitute, 28 on the real-Qube substitute, "
+        "100 % success"),
     Recipe("swingup_adaptive", (
         # `swingup` imitated with 8 past steps under `wide` (which holds the calibrated real Qube), the fit
         # 2 passes in steps of 1024 labels; PPO from here undid the imitation (docs/transfer.md)
