@@ -395,6 +395,29 @@ def test_mpc_spreads_its_planning_over_the_control_steps():
     assert np.median(times) < 2e-3 and np.percentile(times, 90) < 2 * np.median(times) + 1e-3
 
 
+def test_mpc_plans_with_a_stable_model_of_a_heavily_damped_qube():
+    """The calibrated real Qube-Servo 2's damping puts its fastest modes near -250 /s, where one RK4 step
+    of the 20 ms knot (|lambda| h = 5) diverges: the planner subdivides the knot for that model."""
+    real = parameters.values_of(parameters.REAL_QUBE_SERVO2)
+    assert baselines.make("mpc", parameters=real).planning_steps_per_knot == 3
+    assert baselines.make("mpc").planning_steps_per_knot == 1  # the nominal model keeps one
+
+
+def test_mpc_survives_planning_rollouts_that_diverge():
+    """On the calibrated real Qube's simulation, the nominal planner's 20 ms rollouts from a fast spin
+    diverged at step 1750 of this episode, and their NaN costs made a NaN voltage; a diverged rollout
+    now costs infinitely much."""
+    env = suite.load("qube", "swingup_follow", task_kwargs={"random": 4},
+                     domain_kwargs={"parameters": parameters.REAL_QUBE_SERVO2})
+    controller = baselines.for_environment("mpc", env)
+    timestep = env.reset()
+    while not timestep.last():
+        volts = controller(timestep.observation)
+        assert math.isfinite(volts)
+        timestep = env.step(volts)
+    controller.close()
+
+
 COS_SIN = [math.cos(1.0), math.sin(1.0), math.cos(2.0), math.sin(2.0), 3.0, 4.0]
 
 

@@ -13,7 +13,9 @@ measured on. The planner therefore
   instead of 4 ms: over its 0.4 s horizon the median error against the 4 ms
   model is 5 mrad in alpha (90th percentile 0.07 rad, for random voltages from
   random states), small beside the model error of a real Qube, and the plan is
-  made again from the measured state every knot;
+  made again from the measured state every knot. A model with faster modes gets
+  shorter planning steps (`STABLE_RK4_STEP`): the calibrated real Qube-Servo 2's
+  damping puts them near -250 /s, where one 20 ms RK4 step diverges;
 * warm-starts every knot from the last plan, so 16 candidates per knot suffice.
 
 `benchmarks/controllers.py` measures the compute per step.
@@ -32,9 +34,13 @@ from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
 from qube_suite.devices.qube import simulation as qube
 from qube_suite.devices.qube.controllers.base import Controller
 from qube_suite.devices.qube.controllers.follow import arm_set_point
+from qube_suite.devices.qube.controllers.linearization import linearize
 from qube_suite.devices.qube.controllers.lqr import BalanceLQR
 from qube_suite.devices.qube.controllers.swingup import CATCH_VOLTAGE, RELEASE_VOLTAGE
 
+STABLE_RK4_STEP = 2.0
+"""Largest |lambda| h of a planning step, lambda the model's fastest mode (RK4 is stable to 2.78 on the
+negative real axis)."""
 ARM_MARGIN = math.radians(80.0)
 """Planned trajectories pay a large cost for the arm beyond +-80 degrees."""
 
@@ -86,8 +92,10 @@ class SamplingMPC(Controller):
         self._catch_level = self._balance.level_for_voltage(CATCH_VOLTAGE)
         self._release_level = self._balance.level_for_voltage(RELEASE_VOLTAGE)
 
-        self._model = qube.make_physics(control_frequency, parameters).model.ptr
-        steps_per_knot = max(1, round(knot_interval / planning_timestep))
+        physics = qube.make_physics(control_frequency, parameters)
+        self._model = physics.model.ptr
+        steps_per_knot = max(1, round(knot_interval / planning_timestep),
+                             math.ceil(knot_interval * fastest_mode(physics) / STABLE_RK4_STEP))
         self._model.opt.timestep = knot_interval / steps_per_knot
         self._calls_per_knot = max(1, round(knot_interval * control_frequency))
         self._knots = max(1, round(horizon / knot_interval))
@@ -104,6 +112,11 @@ class SamplingMPC(Controller):
         self._samples = samples
         self._seed = seed
         self.reset()
+
+    @property
+    def planning_steps_per_knot(self) -> int:
+        """RK4 steps of the planning model per knot."""
+        return self._steps_per_knot
 
     def reset(self) -> None:
         super().reset()
@@ -162,14 +175,19 @@ class SamplingMPC(Controller):
         theta, alpha, dtheta = states[:, :, 1], states[:, :, 2], states[:, :, 3]  # after time
         cost = (1.0 - np.cos(alpha)) + 0.1 * (theta - self._target) ** 2 + 0.001 * dtheta**2
         cost += 100.0 * (np.abs(theta) > ARM_MARGIN)
-        self._costs[part.which] = cost.sum(axis=1)
+        total = cost.sum(axis=1)
+        self._costs[part.which] = np.where(np.isfinite(total), total, np.inf)  # a rollout that diverged
 
     def _improved_plan(self) -> np.ndarray:
-        """The candidates averaged with weights exp(-cost / temperature)."""
-        total = self._costs
+        """The candidates averaged with weights exp(-cost / temperature); the current plan if every
+        candidate's rollout diverged."""
+        finite = np.isfinite(self._costs)
+        if not finite.any():
+            return self._plan
+        total, candidates = self._costs[finite], self._candidates[finite]
         spread = np.median(total) - total.min()
         weights = np.exp(-(total - total.min()) / (0.1 * spread + 1e-9))
-        return weights @ self._candidates / weights.sum()
+        return weights @ candidates / weights.sum()
 
 
 class _Slice:
@@ -182,3 +200,10 @@ class _Slice:
         self.control = np.empty((which.size, steps, 1))
         self.state = np.empty((which.size, steps, state_size))
         self.sensordata = np.empty((which.size, steps, 0))
+
+
+def fastest_mode(physics: qube.Physics) -> float:
+    """Magnitude (1/s) of the fastest mode of the Qube's dynamics, linearised upright at rest over one
+    of `physics`'s steps."""
+    a, _ = linearize(physics, np.zeros(4), 0.0, 1)
+    return float(np.max(np.abs(np.log(np.linalg.eigvals(a).astype(complex))))) / physics.model.opt.timestep
