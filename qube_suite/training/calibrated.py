@@ -17,8 +17,8 @@ effects, as in the `sim2real` preset. Not drawn: the cable's rest angle and slac
 and the encoders' offsets (`effects_of` gives them to a simulation loaded with the
 calibration file, not to training under a randomization).
 `fine_tuning` says what a calibrated run starts from: the task's adaptive policy
-(`ppo:<task>_adaptive`, observation history included) with the hyperparameters of
-the PPO stage of its recipe (small exploration noise, small steps), or else the
+(`ppo:<task>_adaptive`, observation history included) with the small steps of PPO after
+imitation (`recipes.SMALL_PPO_STEPS`: small exploration noise, small steps), or else the
 task's shipped policy. Fine-tuning the memoryless PPO swing-up (trained under `sim2real`) this
 way made it worse on the held-out plants (docs/transfer.md); the adaptive policy already
 swings them up, and keeps doing so.
@@ -41,7 +41,7 @@ from typing import Any
 from qube_suite.calibration.calibration_file import Calibration
 from qube_suite.calibration.calibration_file import load as load_calibration
 from qube_suite.randomization.presets import PRESETS
-from qube_suite.training.recipes import RECIPES
+from qube_suite.training.recipes import SMALL_PPO_STEPS
 
 WIDTH = 2.0
 """Each estimated parameter is drawn from its 95 % interval widened this many times about the estimate ..."""
@@ -78,14 +78,15 @@ def randomization_for(calibration: Calibration | str | os.PathLike, width: float
 def fine_tuning(task: str, hyperparameters: Mapping[str, Any] | None = None
                 ) -> tuple[str | None, dict[str, Any]]:
     """(init, hyperparameters) of a calibrated PPO run on `task` given no init: the shipped policy
-    `ppo:<task>_adaptive` with the hyperparameters of its recipe's last stage, under `hyperparameters`;
-    else the shipped `ppo:<task>` with `hyperparameters`; else (None: from scratch, `hyperparameters`)."""
+    `ppo:<task>_adaptive` with its history and `SMALL_PPO_STEPS`, under `hyperparameters`; else the
+    shipped `ppo:<task>` with `hyperparameters`; else (None: from scratch, `hyperparameters`)."""
     from qube_suite import policies
 
     given = dict(hyperparameters or {})
-    adaptive = f"{task}_adaptive"
-    if f"ppo:{adaptive}" in policies.shipped() and adaptive in RECIPES:
-        return f"ppo:{adaptive}", {**RECIPES[adaptive].stages[-1].hyperparameters, **given}
+    adaptive = f"ppo:{task}_adaptive"
+    if adaptive in policies.shipped():
+        history = policies.load_policy(adaptive).history
+        return adaptive, {"history": history, **SMALL_PPO_STEPS, **given}
     if f"ppo:{task}" in policies.shipped():
         return f"ppo:{task}", given
     return None, given
