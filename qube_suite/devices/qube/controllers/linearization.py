@@ -1,4 +1,4 @@
-"""Linearisation of the simulated Qube over one control period."""
+"""Linearisation of the simulated Qube over one control period, and its fastest mode."""
 
 from __future__ import annotations
 
@@ -32,3 +32,10 @@ def linearize(physics: qube.Physics, state, voltage: float, nstep: int,
         a[:, i] = (advance(state + step, voltage) - advance(state - step, voltage)) / (2 * epsilon)
     b = ((advance(state, voltage + epsilon) - advance(state, voltage - epsilon)) / (2 * epsilon))[:, None]
     return a, b
+
+
+def fastest_mode(physics: qube.Physics) -> float:
+    """Magnitude (1/s) of the fastest mode of the Qube's dynamics, linearised upright at rest over one
+    of `physics`'s steps."""
+    a, _ = linearize(physics, np.zeros(4), 0.0, 1)
+    return float(np.max(np.abs(np.log(np.linalg.eigvals(a).astype(complex))))) / physics.model.opt.timestep

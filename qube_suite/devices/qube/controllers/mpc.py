@@ -34,7 +34,7 @@ from qube_suite.conventions import DEFAULT_VOLTAGE_LIMIT
 from qube_suite.devices.qube import simulation as qube
 from qube_suite.devices.qube.controllers.base import Controller
 from qube_suite.devices.qube.controllers.follow import arm_set_point
-from qube_suite.devices.qube.controllers.linearization import linearize
+from qube_suite.devices.qube.controllers.linearization import fastest_mode
 from qube_suite.devices.qube.controllers.lqr import BalanceLQR
 from qube_suite.devices.qube.controllers.swingup import CATCH_VOLTAGE, RELEASE_VOLTAGE
 
@@ -200,10 +200,3 @@ class _Slice:
         self.control = np.empty((which.size, steps, 1))
         self.state = np.empty((which.size, steps, state_size))
         self.sensordata = np.empty((which.size, steps, 0))
-
-
-def fastest_mode(physics: qube.Physics) -> float:
-    """Magnitude (1/s) of the fastest mode of the Qube's dynamics, linearised upright at rest over one
-    of `physics`'s steps."""
-    a, _ = linearize(physics, np.zeros(4), 0.0, 1)
-    return float(np.max(np.abs(np.log(np.linalg.eigvals(a).astype(complex))))) / physics.model.opt.timestep
