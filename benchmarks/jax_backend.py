@@ -1,6 +1,7 @@
 """The JAX backend (`qube_suite.mjx`) against the numpy vector environment, and training on it.
 
-    python benchmarks/jax_backend.py throughput [--worlds 256 1024] [--steps 100] [--presets none sim2real]
+    python benchmarks/jax_backend.py throughput [--worlds 256 1024] [--steps 100] [--presets none sim2real] \
+        [--tasks swingup rotor swingup_follow]
     python benchmarks/jax_backend.py train --task swingup --randomization sim2real --steps 150000000 \
         --out runs/jax_swingup [--set num_updates_per_batch=4 ...] [--json FILE]
 
@@ -8,8 +9,10 @@
 policy, randomly initialised, deterministic actions): MJX worlds batched with
 `jax.vmap` inside one `jax.lax.scan` per measurement (compilation excluded), and
 in the same run the numpy vector environment (`gymnasium.make_vec`, native batch of
-MuJoCo rollouts) with the same number of worlds, the same task and preset and the
-same network run by numpy (the peer); by default the nominal plant and `sim2real`.
+MuJoCo rollouts) with the same number of worlds, the same task and preset and a
+network of the same shape on the same features run by numpy (the peer); by default
+swing-up on the nominal plant and under `sim2real`. `--tasks` measures others: the
+rotor's revolution count and a follow task's target are carried in the JAX state.
 `train`: Brax PPO on the backend (`qube_suite.mjx.training`; `--set` changes one of its
 `HYPERPARAMETERS`), the policy of every
 evaluation kept as `snapshots/<steps>.npz` for evaluation on the numpy domains
@@ -20,6 +23,7 @@ between the first and last evaluation (compilation excluded) and the wall times.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import time
 
@@ -30,14 +34,15 @@ from brax.training.agents.ppo import networks as ppo_networks
 
 from qube_suite.mjx import training
 from qube_suite.mjx.environment import QubeMjx
+from qube_suite.policies import features
 
 PRESETS = ("none", "sim2real")
 """The presets `throughput` measures unless told others."""
 
 
-def mjx_rate(preset: str, worlds: int, steps: int) -> float:
-    """Env steps/s of `worlds` MJX worlds running `steps` steps of swing-up with a policy in the loop."""
-    env = QubeMjx("swingup", randomization=preset)
+def mjx_rate(task: str, preset: str, worlds: int, steps: int) -> float:
+    """Env steps/s of `worlds` MJX worlds running `steps` steps of `task` with a policy in the loop."""
+    env = QubeMjx(task, randomization=preset)
     keys = jax.random.split(jax.random.PRNGKey(0), worlds)
     batch, axes = env.draw_worlds(env.sys, keys) if preset != "none" else (env.sys, None)
     network = ppo_networks.make_ppo_networks(env.observation_size, env.action_size)
@@ -63,24 +68,23 @@ def mjx_rate(preset: str, worlds: int, steps: int) -> float:
     return worlds * steps / (time.perf_counter() - start)
 
 
-def numpy_rate(preset: str, worlds: int, steps: int) -> float:
-    """Env steps/s of the numpy vector environment with `worlds` worlds, the same network in numpy."""
+def numpy_rate(task: str, preset: str, worlds: int, steps: int) -> float:
+    """Env steps/s of the numpy vector environment with `worlds` worlds of `task`, a network of the same
+    shape in numpy on the same features."""
     import gymnasium
 
-    import qube_suite  # noqa: F401  (registers the environments)
+    from qube_suite.wrappers.registration import gymnasium_id
 
-    envs = gymnasium.make_vec("QubeSuite/Swingup-v0", num_envs=worlds,
+    envs = gymnasium.make_vec(gymnasium_id(task), num_envs=worlds,
                               vectorization_mode="vector_entry_point", randomization=preset)
+    observations, _ = envs.reset(seed=0)
     rng = np.random.default_rng(0)
-    sizes = [6, 32, 32, 32, 32, 2]
+    sizes = [features.trig(observations).shape[1], 32, 32, 32, 32, 2]
     layers = [(rng.normal(size=(b, a)) / np.sqrt(a), np.zeros(b))
               for a, b in zip(sizes, sizes[1:], strict=False)]
-    observations, _ = envs.reset(seed=0)
     start = time.perf_counter()
     for _ in range(steps):
-        theta, alpha = observations[:, 0], observations[:, 1]
-        x = np.stack([np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha), observations[:, 2],
-                      observations[:, 3]], axis=1)
+        x = features.trig(observations)
         for i, (weight, bias) in enumerate(layers):
             x = x @ weight.T + bias
             if i < len(layers) - 1:
@@ -99,15 +103,14 @@ def _identity_normalizer(size: int):
 
 def throughput(args) -> dict:
     rows = []
-    for preset in args.presets:
-        for worlds in args.worlds:
-            row = {"preset": preset, "worlds": worlds,
-                   "mjx_steps_per_s": mjx_rate(preset, worlds, args.steps)}
-            if worlds <= args.numpy_worlds_max:
-                row["numpy_steps_per_s"] = numpy_rate(preset, worlds, max(10, args.steps // 10))
-                row["ratio"] = row["mjx_steps_per_s"] / row["numpy_steps_per_s"]
-            print(json.dumps(row), flush=True)
-            rows.append(row)
+    for task, preset, worlds in itertools.product(args.tasks, args.presets, args.worlds):
+        row = {"task": task, "preset": preset, "worlds": worlds,
+               "mjx_steps_per_s": mjx_rate(task, preset, worlds, args.steps)}
+        if worlds <= args.numpy_worlds_max:
+            row["numpy_steps_per_s"] = numpy_rate(task, preset, worlds, max(10, args.steps // 10))
+            row["ratio"] = row["mjx_steps_per_s"] / row["numpy_steps_per_s"]
+        print(json.dumps(row), flush=True)
+        rows.append(row)
     return {"throughput": rows}
 
 
@@ -150,6 +153,7 @@ def main() -> None:
     rate.add_argument("--numpy-worlds-max", type=int, default=4096,
                       help="largest world count the numpy peer runs (it scales linearly)")
     rate.add_argument("--presets", nargs="+", default=list(PRESETS), help="randomization presets to measure")
+    rate.add_argument("--tasks", nargs="+", default=["swingup"], help="tasks to measure")
     learn = commands.add_parser("train")
     learn.add_argument("--task", default="swingup")
     learn.add_argument("--randomization", default="none")
