@@ -1,11 +1,13 @@
 """The batched swing-up controller gives each world the per-world controller's voltage (within 1e-12 V)
-through swings, catches, the energy adaptation, voltages other than its own, resets and resyncs."""
+through swings, catches, the energy adaptation, voltages other than its own, resets and resyncs, with one
+design for all worlds or each world its own."""
 
 import numpy as np
 import pytest
 
 from qube_suite import baselines
 from qube_suite.conventions import ObservationLayout
+from qube_suite.devices.qube import parameters
 from qube_suite.devices.qube.controllers.batched import BatchedSwingup
 from qube_suite.wrappers.vector_env import QubeVectorEnv
 
@@ -53,6 +55,49 @@ def test_the_batch_gives_each_world_the_per_world_controllers_voltage(latency_st
     assert adapted.any()  # an uncaught swing changed the set energy
 
 
+DESIGNS = [{"latency_steps": 0},
+           {"latency_steps": 2, "parameters": parameters.REAL_QUBE_SERVO2},
+           {"latency_steps": 1, "parameters": {"pendulum_mass": 0.03, "motor_resistance": 6.5}},
+           {"latency_steps": 3, "parameters": {"rotor_inertia": 2e-5, "arm_damping": 1e-3}}]
+"""Designs of the teacher built for each world's plant (`imitation.Teachers(knows_plant=True)`)."""
+
+
+def test_each_world_runs_its_own_design_and_takes_another_at_a_new_episode():
+    def make(index):
+        return baselines.make("swingup", voltage_limit=3.0, **DESIGNS[index % len(DESIGNS)])
+
+    chosen = np.arange(WORLDS)
+    controllers = [make(index) for index in chosen]
+    batch = BatchedSwingup(make(0), WORLDS)
+    for world in range(WORLDS):
+        batch.redesign(world, make(chosen[world]))
+    batch.reset(np.ones(WORLDS, bool))
+    env = QubeVectorEnv("swingup", WORLDS, autoreset_mode="SameStep", randomization="wide")
+    observations, _ = env.reset(seed=3)
+    random = np.random.default_rng(3)
+    worst, balanced, redesigned = 0.0, np.zeros(WORLDS, bool), 0
+    for _ in range(1500):
+        states = observations[:, :4].astype(np.float64)
+        expected = np.array([controller(row) for controller, row in zip(controllers, states, strict=True)])
+        volts = batch(states)
+        worst = max(worst, float(np.abs(volts - expected).max()))
+        balanced |= np.array([controller.balancing for controller in controllers])
+        for controller, value in zip(controllers, expected, strict=True):
+            controller.sent(float(value))
+        batch.sent(expected)
+        observations, _, terminated, truncated, _ = env.step(expected[:, None].astype(np.float32))
+        restart = terminated | truncated | (random.random(WORLDS) < 0.004)
+        for world in np.flatnonzero(restart):
+            chosen[world] += 1
+            controllers[world] = make(chosen[world])
+            batch.redesign(world, make(chosen[world]))
+            redesigned += 1
+        batch.reset(restart)
+    env.close()
+    assert worst <= 1e-12
+    assert balanced.any() and redesigned >= 5
+
+
 def test_a_batch_refuses_what_it_cannot_run():
     with pytest.raises(ValueError, match="SwingupController"):
         BatchedSwingup(baselines.make("balance"), 2)
@@ -60,6 +105,10 @@ def test_a_batch_refuses_what_it_cannot_run():
         BatchedSwingup(baselines.make("swingup"), 0)
     with pytest.raises(ValueError, match=r"shape \(2, 4\)"):
         BatchedSwingup(baselines.make("swingup"), 2)(np.zeros((3, 4)))
+    with pytest.raises(ValueError, match="voltage limit and control frequency"):
+        BatchedSwingup(baselines.make("swingup"), 2).redesign(0, baselines.make("swingup", voltage_limit=5.0))
+    with pytest.raises(ValueError, match="SwingupController"):
+        BatchedSwingup(baselines.make("swingup"), 2).redesign(1, baselines.make("balance"))
 
 
 

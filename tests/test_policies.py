@@ -11,6 +11,7 @@ import pytest
 
 from qube_suite import cli, evaluate
 from qube_suite.conventions import ObservationLayout
+from qube_suite.hardware.plant import named_plant
 from qube_suite.policies import MLPPolicy, features, load, load_policy, save, shipped
 
 SHIPPED = ("ppo:balance", "ppo:balance_follow", "ppo:dampen", "ppo:rotor", "ppo:swingup",
@@ -211,12 +212,26 @@ def test_the_adaptive_swingup_swings_up_a_qube_where_the_memoryless_one_fails():
     # within the held-out ranges (benchmarks/held_out.py): a pendulum 15 % lighter and 8 % longer, a
     # stronger motor, a sticky arm and a stiff cable (near a plant `--plant-seed 7` drew)
     light_long_and_sticky = {"pendulum_mass": 0.024 * 0.85, "pendulum_length": 0.129 * 1.08,
-                             "motor_torque_constant": 0.042 * 1.1, "arm_friction": 3e-3,
-                             "cable_stiffness": 2e-3}
+                         "motor_torque_constant": 0.042 * 1.1, "arm_friction": 3e-3,
+                         "cable_stiffness": 2e-3}
     kwargs = {"domain": "qube_hardware", "episodes": 2, "seed": 1000,
               "domain_kwargs": {"plant": light_long_and_sticky}}
     assert evaluate("ppo:swingup", **kwargs).success_rate == 0.0
     result = evaluate("ppo:swingup_adaptive", **kwargs)
+    assert result.success_rate == 1.0 and min(result.returns) >= 1500, result.returns
+
+
+@pytest.mark.slow
+def test_the_adaptive_swingup_swings_up_a_held_out_plant_about_the_real_qube():
+    # plant 8 of `benchmarks/held_out.py --base real_qube_servo2`: a pendulum 24 % heavier and 10 % longer,
+    # a motor 22 % lower in resistance, a sticky arm; the student of the nominal `swingup` teacher kept
+    # swinging through upright in every episode
+    heavy_long_strong = {**named_plant("real_qube_servo2"), "pendulum_mass": 0.0298,
+                         "pendulum_length": 0.134, "motor_resistance": 6.55,
+                         "motor_torque_constant": 0.0359, "rotor_inertia": 3.71e-5,
+                         "arm_friction": 1.26e-3, "pendulum_friction": 1.13e-4, "cable_stiffness": 1.67e-3}
+    result = evaluate("ppo:swingup_adaptive", domain="qube_hardware", episodes=2, seed=1000,
+                      domain_kwargs={"plant": heavy_long_strong})
     assert result.success_rate == 1.0 and min(result.returns) >= 1500, result.returns
 
 

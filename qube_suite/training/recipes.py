@@ -166,9 +166,11 @@ RECIPES: dict[str, Recipe] = {recipe.name: recipe for recipe in (
         "ppo:rotor: 29 revolutions in simulation, 27 on the substitute, 28 on the real-Qube substitute, "
         "100 % success"),
     Recipe("swingup_adaptive", (
-        # `swingup` imitated with 8 past steps under `wide` (which holds the calibrated real Qube), the fit
-        # 2 passes in steps of 1024 labels; PPO from here undid the imitation (docs/transfer.md)
+        # `swingup` built for each world's plant, imitated with 8 past steps under `wide` (which holds the
+        # calibrated real Qube), the fit 2 passes in steps of 1024 labels; PPO from here undid the
+        # imitation (docs/transfer.md)
         Stage("imitation", "swingup", 1_000_000, 5, teacher="swingup", randomization="wide",
+              teacher_knows_plant=True,
               hyperparameters={"history": 8, "policy_kwargs": IMITATION_ACTOR, "epochs": 2,
                                "minibatch": 1024}),),
         "ppo:swingup_adaptive: 100 % success on each of 10 held-out plants (benchmarks/held_out.py), on the "

@@ -1,9 +1,10 @@
-"""The `swingup` controller for many worlds at once: one design, each world's episode state in arrays.
+"""The `swingup` controller for many worlds at once: each world's design and episode state in arrays.
 
     design = baselines.make("swingup", voltage_limit=10.0, latency_steps=1)
     batch = BatchedSwingup(design, worlds=64)
     volts = batch(states)            # states: rows [theta, alpha, dtheta, dalpha]; volts: one per world
     batch.sent(volts_really_sent)    # as `Controller.sent`, per world
+    batch.redesign(3, other_design)  # world 3 runs another design (its model, gains, latency) from now
     batch.reset(mask)                # new episodes in the worlds of a boolean mask
 
 Imitation labels every state of 64 simulated worlds with the controller's voltage
@@ -13,13 +14,15 @@ energy shaping of `energy.py`, the balance LQR of `lqr.py`, the switch between t
 and the swing-to-swing energy adaptation) and its `StateObserver` (`observer.py`)
 on arrays of worlds, in the same order of operations: each world's voltage is the
 per-world controller's to within rounding of numpy's trigonometric functions
-(`tests/test_batched_controller.py` holds them within 1e-12 V). The gains, matrices
-and model coefficients are read from the one `design`, so its Riccati equations
-are solved once for all worlds. The equations are explained in those modules.
+(`tests/test_batched_controller.py` holds them within 1e-12 V). The gains, matrices,
+model coefficients and latency are read from `design` for every world, so its Riccati
+equations are solved once for all; `redesign` gives one world another design (a
+teacher built for the plant a world drew). The equations are explained in those modules.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -28,6 +31,11 @@ from qube_suite.angles import TAU
 from qube_suite.devices.qube.controllers import energy as shaping_law
 from qube_suite.devices.qube.controllers import observer as observer_law
 from qube_suite.devices.qube.controllers import swingup as swingup_law
+from qube_suite.devices.qube.controllers.model import RigidBodyModel
+
+_PER_WORLD = ("_lqr_limit", "_catch_level", "_release_level", "_pump_torque", "_centre_limit", "_drain_speed",
+              "_stiffness", "_damping", "_shaping_limit", "_offset_scale", "_offset_slope")
+"""The design's numbers each world holds its own of (one per world)."""
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
@@ -49,26 +57,21 @@ class BatchedSwingup:
         if not (isinstance(worlds, int) and worlds >= 1):
             raise ValueError(f"worlds must be a positive integer, got {worlds!r}")
         self.worlds = worlds
-        self.model = model = design.model
         self.voltage_limit = design.voltage_limit
-        observer = design.observer
-        self.latency_steps = observer.latency_steps
-        self._substeps, self._substep = observer._substeps, observer._substep
-        self._gains = observer.gains
-        self._lqr_gain, self._cost_matrix = design.balance.gain, design.balance.cost_matrix
-        self._lqr_limit = design.balance.voltage_limit
-        self._catch_level, self._release_level = design.catch_level, design.release_level
-        shaping = design.shaping
-        self._pump_torque, self._centre_limit = shaping.pump_torque, shaping.centre_limit
-        self._drain_speed, self._stiffness = shaping.drain_speed, shaping.stiffness
-        self._damping = shaping.damping
-        self._shaping_limit = shaping.voltage_limit
-        self._offset_scale = model.coupling / math.sqrt(model.base_inertia * model.swing_inertia)
-        self._offset_slope = math.sqrt(model.swing_inertia / model.base_inertia)
+        self._substeps, self._substep = design.observer._substeps, design.observer._substep
+        self.model = RigidBodyModel(**{field.name: np.full(worlds, getattr(design.model, field.name))
+                                       for field in dataclasses.fields(RigidBodyModel)})
+        self._latency = np.zeros(worlds, int)
+        self._gains = np.zeros((2, 3, worlds))
+        self._lqr_gain, self._cost_matrix = np.zeros((worlds, 4)), np.zeros((worlds, 4, 4))
+        for name in _PER_WORLD:
+            setattr(self, name, np.zeros(worlds))
+        self._voltages = np.zeros((design.observer.latency_steps + 1, worlds))
+        for world in range(worlds):
+            self.redesign(world, design)
         self._started = np.zeros(worlds, bool)
         self._state = np.zeros((4, worlds))
         self._bias = np.zeros((2, worlds))
-        self._voltages = np.zeros((self.latency_steps + 1, worlds))
         self._balancing = np.zeros(worlds, bool)
         self._energy_set = np.zeros(worlds)
         self._upper_side = np.zeros(worlds)
@@ -78,12 +81,40 @@ class BatchedSwingup:
         self._crossed = np.zeros(worlds, bool)  # whether `_excess` holds a value (the controller's not None)
         self.reset(np.ones(worlds, bool))
 
+    def redesign(self, world: int, design: swingup_law.SwingupController) -> None:
+        """Run `design` (a `SwingupController` of this batch's voltage limit and control frequency) in
+        world `world` from its next episode (`reset`): its model, gains, limits and latency."""
+        if not isinstance(design, swingup_law.SwingupController):
+            raise ValueError(f"design must be a SwingupController, got {type(design).__name__}")
+        observer, balance, shaping, model = design.observer, design.balance, design.shaping, design.model
+        if design.voltage_limit != self.voltage_limit or observer._substep != self._substep:
+            raise ValueError("a design's voltage limit and control frequency must be the batch's: "
+                             f"{design.voltage_limit} V and {self._substep * self._substeps} s per period, "
+                             f"got {self.voltage_limit} V and {observer._substep * observer._substeps} s")
+        for field in dataclasses.fields(RigidBodyModel):
+            getattr(self.model, field.name)[world] = getattr(model, field.name)
+        self._latency[world] = observer.latency_steps
+        missing = observer.latency_steps + 1 - len(self._voltages)
+        if missing > 0:  # a longer memory of voltages sent; the newest stay last
+            self._voltages = np.concatenate([np.zeros((missing, self.worlds)), self._voltages])
+        self._gains[:, :, world] = observer.gains
+        self._lqr_gain[world], self._cost_matrix[world] = balance.gain, balance.cost_matrix
+        values = {"_lqr_limit": balance.voltage_limit, "_catch_level": design.catch_level,
+                  "_release_level": design.release_level, "_pump_torque": shaping.pump_torque,
+                  "_centre_limit": shaping.centre_limit, "_drain_speed": shaping.drain_speed,
+                  "_stiffness": shaping.stiffness, "_damping": shaping.damping,
+                  "_shaping_limit": shaping.voltage_limit,
+                  "_offset_scale": model.coupling / math.sqrt(model.base_inertia * model.swing_inertia),
+                  "_offset_slope": math.sqrt(model.swing_inertia / model.base_inertia)}
+        for name in _PER_WORLD:
+            getattr(self, name)[world] = values[name]
+
     def reset(self, worlds: np.ndarray) -> None:
         """Forget the previous episode in the worlds of the boolean mask `worlds`."""
         worlds = np.asarray(worlds, bool)
         self._forget_estimate(worlds)
         self._balancing[worlds] = False
-        self._energy_set[worlds] = swingup_law.ENERGY_MARGIN * self.model.swing_up_energy
+        self._energy_set[worlds] = swingup_law.ENERGY_MARGIN * self.model.swing_up_energy[worlds]
         self._upper_side[worlds] = 0.0
         self._peak_alpha[worlds] = math.pi
         self._peak_energy[worlds] = 0.0
@@ -119,7 +150,7 @@ class BatchedSwingup:
         theta, alpha = measured[0], measured[1]
         started = self._started
         if started.any():
-            predicted = self._advance(self._state, self._voltages[0])
+            predicted = self._advance(self._state, self._sent_before(0))
             errors = (theta - predicted[0], _wrap(alpha - predicted[1]))
             far = np.maximum(np.abs(errors[0]), np.abs(errors[1])) > observer_law.RESYNC_ANGLE
             corrected = started & ~far
@@ -135,9 +166,16 @@ class BatchedSwingup:
         self._state[:, fresh] = measured[:, fresh]
         self._started[fresh] = True
         state = self._state
-        for k in range(1, self.latency_steps + 1):
-            state = self._advance(state, self._voltages[k])
+        for k in range(1, int(self._latency.max()) + 1):
+            state = np.where(k <= self._latency, self._advance(state, self._sent_before(k)), state)
         return np.array([state[0], _wrap(state[1]), state[2], state[3]])
+
+    def _sent_before(self, k: int) -> np.ndarray:
+        """Each world's voltage sent `latency - k` measurements before the last one (its own latency;
+        the last one's where that is later)."""
+        newest = len(self._voltages) - 1
+        rows = np.minimum(newest - self._latency + k, newest)
+        return self._voltages[rows, np.arange(self.worlds)]
 
     def _advance(self, state: np.ndarray, volts: np.ndarray) -> np.ndarray:
         return np.array(observer_law.advance(self._accelerations, self._bias, state, volts, self._substep,
@@ -164,10 +202,10 @@ class BatchedSwingup:
     def _voltage_for(self, state: np.ndarray) -> np.ndarray:
         level = np.where(self._balancing, self._release_level, self._catch_level)
         error = state.T  # the LQR's error from upright at arm angle 0
-        cost = np.einsum("wi,ij,wj->w", error, self._cost_matrix, error)
+        cost = np.einsum("wi,wij,wj->w", error, self._cost_matrix, error)
         self._balancing = cost < level
         self._learn_from_swing(state)
-        lqr = -(error @ self._lqr_gain)
+        lqr = -np.einsum("wi,wi->w", error, self._lqr_gain)
         lqr = np.minimum(np.maximum(lqr, -self._lqr_limit), self._lqr_limit)
         return np.where(self._balancing, lqr, self._shaping(state))
 
