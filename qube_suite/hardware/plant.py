@@ -193,9 +193,9 @@ def plant_parameters(board_type: str = "qube_servo2_usb",
     if board_type not in BOARD_MOTORS:
         raise ValueError(f"unknown board type {board_type!r}; valid: {', '.join(BOARD_MOTORS)}")
     if isinstance(overrides, str):
-        overrides = named_plant(overrides, board_type)
+        overrides = _named_overrides(overrides, board_type)
     else:
-        overrides = {**named_plant(DEFAULT_PLANTS[board_type], board_type), **(overrides or {})}
+        overrides = {**_named_overrides(DEFAULT_PLANTS[board_type], board_type), **(overrides or {})}
     values = dict(parameters.NOMINAL)
     values.update(HARDWARE_DEFAULTS)
     values.update(BOARD_MOTORS[board_type])
@@ -268,8 +268,14 @@ DEFAULT_PLANTS: types.MappingProxyType[str, str] = types.MappingProxyType({
 
 
 def named_plant(name: str, board_type: str = "qube_servo2_usb") -> dict[str, float]:
-    """The overrides of the estimated plant that make the plant `name` of `PLANTS` on a `board_type`
-    board; ValueError for an unknown name (listing the valid ones) or a plant of another board type."""
+    """Every parameter of the plant `name` of `PLANTS` on a `board_type` board: a whole plant, which
+    `plant=` takes with changes (`{**named_plant("estimated"), "arm_friction": 2e-3}`). ValueError for
+    an unknown name (listing the valid ones) or a plant of another board type."""
+    return plant_parameters(board_type, name)
+
+
+def _named_overrides(name: str, board_type: str) -> dict[str, float]:
+    """The overrides of the estimated plant that make the plant `name` of `PLANTS` on a `board_type` board."""
     if name not in PLANTS:
         raise ValueError(f"unknown plant {name!r}; named plants: {', '.join(PLANTS)} (or a mapping of plant "
                          "parameters by long name)")
