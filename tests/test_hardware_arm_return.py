@@ -105,4 +105,4 @@ def test_return_arm_refuses_a_voltage_away_from_the_centre_or_too_large(volts, m
             qube.action([0.0])                                              # action never drives it there
         qube.resume()
         qube.return_arm([conventions.board_voltage(-1.0)])                 # inwards, gently: allowed
-        assert qube.board.applied_voltage == conventions.board_voltage(-1.0)
+        assert qube.board.written_voltage == conventions.board_voltage(-1.0)

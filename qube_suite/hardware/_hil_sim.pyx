@@ -999,6 +999,17 @@ cdef class HIL:
             return np.asarray(volts).copy()
 
     @property
+    def written_voltage(self):
+        """Voltage (V, board sign) last written to the motor's analog output, as the board holds it: what
+        the amplifier applies `latency` later (`applied_voltage`), while enabled. With a device's own
+        plant, an array: one per analog output."""
+        with self.lock:
+            self._sync()
+            if self.device_plant is None:
+                return self.out.analog[0]
+            return np.array([self.out.analog[j] for j in range(self.n_analog_outputs)])
+
+    @property
     def amplifier_enabled(self):
         """True if the amplifier drives the motor (enabled, no fault, no stall error); with a device's own
         plant, if it drives any of them."""
