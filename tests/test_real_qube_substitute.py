@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+import os
 import shutil
 
 import numpy as np
@@ -94,6 +95,10 @@ def test_a_new_calibration_flows_into_the_plant(tmp_path, monkeypatch):
     monkeypatch.setattr(plant, "PLANTS", {REAL: recalibrated})
     values = _hil_sim.HIL("qube_servo2_usb", plant=REAL).plant
     assert values["rotor_inertia"] == 2.0e-5 and values["latency"] == 0.008 and values["cable_slack"] == 0.3
+    content["parameters"]["rotor_inertia"] = 3.0e-5                   # the same file changed in place
+    copy.write_text(yaml.safe_dump(content))
+    os.utime(copy, ns=(copy.stat().st_atime_ns, copy.stat().st_mtime_ns + 1_000_000))
+    assert _hil_sim.HIL("qube_servo2_usb", plant=REAL).plant["rotor_inertia"] == 3.0e-5
 
 
 def test_bad_plant_names_get_a_clear_error():
