@@ -11,9 +11,11 @@ the plant's Coulomb friction and cable stiffness by up to +-`EPISODE_SPREAD`
 overall the mean return and success (no termination, the pendulum within 10
 degrees of upright for the final 2 s) with a 95 % Wilson interval.
 
-`--base real_qube_servo2` draws the plants around a named plant of the substitute
-(`qube_suite.hardware.plant.PLANTS`) instead of its default one: the relative ranges about
-that plant's values, every other parameter (its latency, dead zone, cable band...) kept.
+The plants are drawn about the substitute's default plant, the real Qube's (`real_qube_servo2`);
+`--base NAME` draws them about another named plant (`qube_suite.hardware.plant.PLANTS`; `--base
+estimated`: the estimated plant, about which the figures published before 2026-11-28 were
+measured): the relative ranges about that plant's values, every other parameter (its latency,
+dead zone, cable band...) kept.
 `--substitute` also scores every policy on that plant itself (the default plant without
 `--base`), its episodes varied as a held-out plant's, in the row "substitute".
 `--calibrated swingup` also scores the model-based controllers named, each built from its
@@ -23,7 +25,7 @@ substitute with that plant, seed 0, as `benchmarks/sim2real.py` calibrates), as 
 return 0 (`evaluate`'s rule); the table says how many did. The transfer study's headline rows on
 the substitute like a real Qube (docs/transfer.md):
 
-    python benchmarks/held_out.py --base real_qube_servo2 --substitute \
+    python benchmarks/held_out.py --substitute \
         --policy ppo:swingup_adaptive ppo:swingup swingup --calibrated swingup
 
     python benchmarks/held_out.py [--policy ppo:swingup ...] [--plants 10] [--episodes 20]
@@ -42,26 +44,24 @@ import time
 import numpy as np
 
 from qube_suite import baselines, calibration, evaluate
+from qube_suite.devices.qube import parameters as nominal_parameters
 from qube_suite.hardware.plant import named_plant, plant_parameters
 from qube_suite.randomization.presets import PRESETS
 
 RELATIVE = {"pendulum_mass": 0.30, "pendulum_length": 0.10, "motor_resistance": 0.25,
             "motor_torque_constant": 0.15, "rotor_inertia": 0.30}
-"""Held-out ranges: parameter -> half-width relative to the substitute's plant (uniform)."""
+"""Held-out ranges: parameter -> half-width relative to the plant they are drawn about (uniform)."""
 ABSOLUTE = {"arm_friction": 4e-3, "pendulum_friction": 2e-4, "cable_stiffness": 4e-3}
 """Held-out ranges: parameter -> upper end (N m, N m, N m/rad), from 0 (uniform)."""
 EPISODE_SPREAD = 0.1
 """Relative variation of each episode's friction and cable stiffness around its plant's values."""
-
-_PLANT = plant_parameters()
-
 
 def inside_sim2real(plant: dict[str, float]) -> bool:
     """Whether every value of `plant` lies within the `sim2real` preset's range for it."""
     ranges = PRESETS["sim2real"]["parameters"]
     for name, value in plant.items():
         spec = ranges[name]
-        scale = 1.0 if spec.get("relative", True) is False else _PLANT[name]
+        scale = 1.0 if spec.get("relative", True) is False else nominal_parameters.NOMINAL[name]
         if not spec["low"] * scale <= value <= spec["high"] * scale:
             return False
     return True
@@ -69,9 +69,9 @@ def inside_sim2real(plant: dict[str, float]) -> bool:
 
 def draw_plants(count: int, seed: int, base: str | None = None) -> list[dict[str, float]]:
     """`count` plants from the held-out ranges, each outside the `sim2real` ranges (seeded); about the
-    named plant `base` (None: the default plant), whose other parameters they keep."""
+    named plant `base` (None: the substitute's default plant), whose other parameters they keep."""
     random = np.random.default_rng(seed)
-    around = _PLANT if base is None else plant_parameters("qube_servo2_usb", base)
+    around = plant_parameters("qube_servo2_usb", base)
     plants = []
     while len(plants) < count:
         plant = {name: around[name] * random.uniform(1 - w, 1 + w) for name, w in RELATIVE.items()}
@@ -142,7 +142,8 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0, help="first episode seed")
     parser.add_argument("--jobs", type=int, default=1, help="cells scored in parallel")
     parser.add_argument("--json", default=None, help="also write the cells to this JSON file")
-    parser.add_argument("--base", default=None, help="draw about this named plant (e.g. real_qube_servo2)")
+    parser.add_argument("--base", default=None,
+                        help="draw about this named plant (default: the substitute's, real_qube_servo2)")
     parser.add_argument("--substitute", action="store_true",
                         help="also score on the plant the held-out ones are drawn about")
     parser.add_argument("--calibrated", nargs="*", default=[], metavar="CONTROLLER",

@@ -3,13 +3,13 @@
 Each shipped policy (`qube_suite.policies.shipped()`, "ppo:<task>") runs on its
 task with the task settings it was trained with (e.g. a follow task's target
 schedule; otherwise the defaults, 250 Hz, 3 V) on the simulated Qube and on the
-hardware substitute (`qube_hardware`), through
+hardware substitute (`qube_hardware`, its default plant: the real Qube-Servo 2's), through
 `qube_suite.evaluate` (success as there: no termination and the pendulum within
 10 degrees of its goal for the final 2 s; rotor: at least 5 revolutions). The
 table also gives each policy's training record: environment steps and wall-clock
 time on the machine that trained it. `--plant NAME` scores them on the substitute with a named
-plant too (`qube_suite.hardware.plant.PLANTS`, e.g. `real_qube_servo2`: the substitute like a
-real Qube-Servo 2), in rows `qube_hardware (NAME)`.
+plant too (`qube_suite.hardware.plant.PLANTS`, e.g. `estimated`: the plant this project estimated,
+the default until 2026-11-28), in rows `qube_hardware (NAME)`.
 
     python benchmarks/policies.py [--episodes 20] [--seed 0] [--json results.json] [--policies SPEC ...]
                                   [--plant NAME]

@@ -6,9 +6,10 @@ its parameters, latency, voltage dead zone, cable and encoder offset), the latte
 simulation's exact angles and velocities, and measured as its board measures it (angles in whole
 encoder counts, velocities through the hardware domain's filter: `MEASURED_BY_THE_BOARD`), and
 prints the success rates side by side. `--substitute` adds the hardware substitute (`qube_hardware`):
-its default plant, the plant of the real Qube (`plant="real_qube_servo2"`, `qube_suite.hardware.plant`),
-and that plant with the calibration given to the domain (`parameters`: what the model-based
-controllers and the reset controllers are designed with; a learned policy is the same policy).
+the estimated plant (`plant="estimated"`, its default until 2026-11-28), its default plant, that of the
+real Qube (`plant="real_qube_servo2"`, `qube_suite.hardware.plant`), and that plant with the calibration
+given to the domain (`parameters`: what the model-based controllers and the reset controllers are
+designed with; a learned policy is the same policy).
 
     python benchmarks/real_qube_policies.py [--episodes 10] [--also swingup=runs/my_policy.npz ...]
                                             [--substitute] [--pairs swingup=swingup ...]
@@ -37,8 +38,8 @@ SIMULATION = {"nominal model": ("qube", None, None),
               "calibrated real Qube-Servo 2": ("qube", REAL, None),
               "the same, measured by its board": ("qube", REAL, MEASURED_BY_THE_BOARD)}
 """Columns: domain, domain_kwargs, randomization."""
-SUBSTITUTE = {"default substitute": ("qube_hardware", None, None),
-              "real-Qube substitute": ("qube_hardware", {"plant": "real_qube_servo2"}, None),
+SUBSTITUTE = {"estimated plant": ("qube_hardware", {"plant": "estimated"}, None),
+              "real-Qube substitute (default)": ("qube_hardware", {"plant": "real_qube_servo2"}, None),
               "real-Qube substitute, calibration given": (
                   "qube_hardware", {"plant": "real_qube_servo2", **REAL}, None)}
 

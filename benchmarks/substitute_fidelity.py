@@ -16,7 +16,7 @@ the nominal model's errors are both within 1.5x of the real ones. A plant far ea
 than the real Qube fails as much as one far from it.
 
     python benchmarks/substitute_fidelity.py [--data DIR] [--held-out neg_0 pos_2 ... | all]
-        [--plants default real_qube_servo2] [--out FILE.json]
+        [--plants estimated real_qube_servo2] [--out FILE.json]
 
 By default two chirps are held out (neg_0, pos_2: six calibrations in all, 6 to 15 minutes on a
 shared 2-core machine); `--held-out all` scores all ten as `real_qube.py` does (30 calibrations).
@@ -45,14 +45,14 @@ from real_qube import DEFAULT_DATA, predict, rms  # noqa: E402  (the benchmark b
 HORIZONS = (0.1, 0.5)
 HELD_OUT = ("neg_0", "pos_2")
 """Chirps held out by default (one starting each way)."""
-PLANTS = ("default", "real_qube_servo2")
+PLANTS = ("estimated", "real_qube_servo2")
 TOLERANCE = 1.5
 """A plant's error may differ from the real Qube's by this factor either way."""
 
 
-def replay(path: str, plant: str | None, seed: int, destination: str) -> str:
+def replay(path: str, plant: str, seed: int, destination: str) -> str:
     """Replay the recording at `path`'s voltages on a substitute board with `plant` (a name of
-    `hardware.plant.PLANTS`; None: the default plant) seeded with `seed`; write what its encoders
+    `hardware.plant.PLANTS`) seeded with `seed`; write what its encoders
     read to `destination` in the recordings' CSV format and return that path."""
     recorded = recordings.read(path)
     start = [recorded.theta[0], np.pi + wrap_angle(recorded.alpha[0] - np.pi), 0.0, 0.0]  # hanging: near pi
@@ -109,7 +109,7 @@ def main() -> None:
     parser.add_argument("--held-out", nargs="+", default=list(HELD_OUT),
                         help="chirps to hold out, e.g. neg_0 pos_2, or 'all'")
     parser.add_argument("--plants", nargs="+", default=list(PLANTS),
-                        help="'default' and names of qube_suite.hardware.plant.PLANTS")
+                        help="names of qube_suite.hardware.plant.PLANTS")
     parser.add_argument("--out", default=None, help="write the results as JSON here")
     args = parser.parse_args()
     started = time.perf_counter()
@@ -126,7 +126,7 @@ def main() -> None:
     print("real Qube", results["real"], flush=True)
     with tempfile.TemporaryDirectory() as folder:
         for plant in args.plants:
-            replays = [replay(path, None if plant == "default" else plant, index,
+            replays = [replay(path, plant, index,
                               os.path.join(folder, f"{plant}_{os.path.basename(path)}"))
                        for index, path in enumerate(chirps)]
             found = score(replays, [replays[names.index(n)] for n in held])

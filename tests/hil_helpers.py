@@ -8,14 +8,18 @@ import types
 import numpy as np
 
 from qube_suite.hardware import _hil_sim, conventions
+from qube_suite.hardware.plant import ESTIMATED, named_plant
 
 MOTOR = np.array([0], dtype=np.uint32)
 ENCODERS = np.array([0, 1], dtype=np.uint32)
 FLAGS = np.array([0, 1, 2], dtype=np.uint32)
 TACHOMETER = np.array([14000], dtype=np.uint32)
 
-CLEAN_PLANT = {"arm_friction": 0.0, "pendulum_friction": 0.0, "cable_stiffness": 0.0, "motor_inductance": 0.0,
-               "bench_vibration": 0.0}
+ESTIMATED_PLANT = named_plant(ESTIMATED)
+"""Every parameter of the estimated plant: the board's integrator with the values `plant.py` documents."""
+
+CLEAN_PLANT = {**ESTIMATED_PLANT, "arm_friction": 0.0, "pendulum_friction": 0.0, "cable_stiffness": 0.0,
+               "motor_inductance": 0.0, "bench_vibration": 0.0}
 """The plant reduced to the nominal model (what tests/reference_dynamics.py describes)."""
 
 

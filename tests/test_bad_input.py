@@ -92,10 +92,10 @@ def test_refused_action_on_hardware_never_reaches_the_board_and_zeroes_the_motor
         env.reset()
         env.step(np.array([1.0]))
         board = env.physics.qube.board
-        before = (board.time, board.applied_voltage, env.step_count, board.true_state())
+        before = (board.time, board.written_voltage, env.step_count, board.true_state())
         with pytest.raises(ValueError):
             env.step(action)
-        after = (board.time, board.applied_voltage, env.step_count, board.true_state())
+        after = (board.time, board.written_voltage, env.step_count, board.true_state())
         assert after[0] == before[0] and after[2] == before[2]          # no sample read, no step taken
         assert after[1] == 0.0                                          # but the last voltage is off
         np.testing.assert_array_equal(after[3], before[3])
@@ -109,9 +109,9 @@ def test_board_refuses_non_numbers_without_reading_a_sample(bad):
         time_before = qube.board.time
         with pytest.raises(ValueError, match="voltages"):
             qube.action(bad)
-        assert qube.board.time == time_before and qube.board.applied_voltage == 0.0  # stopped, not stepped
+        assert qube.board.time == time_before and qube.board.written_voltage == 0.0  # stopped, not stepped
         qube.action(1.0)
-        assert qube.board.applied_voltage == 1.0
+        assert qube.board.written_voltage == 1.0
 
 
 @pytest.mark.parametrize("kwargs, message", [

@@ -17,6 +17,7 @@ from qube_suite.calibration import experiment
 from qube_suite.devices.qube_disk import calibration, controllers, parameters, simulation, substitute
 from qube_suite.evaluation import evaluate
 from qube_suite.hardware import _hil_sim
+from qube_suite.hardware.plant import REAL_EFFECT_PARAMETERS
 from qube_suite.hardware.quanser import QuanserWrapper
 from qube_suite.policies import mlp
 
@@ -67,6 +68,7 @@ def test_the_substitute_plant_is_the_first_order_disk(board_type):
     """Without Coulomb friction the substitute's disk answers a voltage step as K / (tau s + 1) with the
     disk's K and tau (the board's motor), and reads a count of the pendulum encoder never."""
     overrides = {**substitute.plant_overrides(board_type), "arm_friction": 0.0}
+    assert all(overrides[name] == 0.0 for name in REAL_EFFECT_PARAMETERS)  # not the real Qube-Servo 2's
     board = _hil_sim.HIL(board_type, plant=overrides)
     board.write_digital(np.array([0], dtype=np.uint32), 1, np.ones(1, dtype=np.int8))
     task = board.task_create_reader(1, np.zeros(0, np.uint32), 0, np.array([0, 1], np.uint32), 2,

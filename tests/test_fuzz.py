@@ -75,7 +75,7 @@ def test_impossible_simulation_arguments_are_value_errors(kwargs, message):
 @pytest.mark.parametrize("domain_kwargs, message", [
     ({"max_voltage": "10"}, "max_voltage must be a positive number, got '10'"),
     ({"max_voltage": float("nan")}, "max_voltage must be a positive number"),
-    ({"plant": "x"}, "unknown plant 'x'; named plants: real_qube_servo2"),
+    ({"plant": "x"}, "unknown plant 'x'; named plants: estimated, real_qube_servo2"),
     ({"plant": 3}, "plant must be a mapping"),
 ])
 def test_impossible_hardware_arguments_are_value_errors(domain_kwargs, message):

@@ -119,7 +119,7 @@ def test_a_refused_voltage_writes_0_volts_on_the_compiled_path_too():
             qube.action(4.0)
             with pytest.raises(ValueError):
                 qube.action(refused)
-            assert qube.board.applied_voltage == 0.0 and qube.board.amplifier_enabled
+            assert qube.board.written_voltage == 0.0 and qube.board.amplifier_enabled
 
 
 def test_the_compiled_path_is_for_the_fast_substitute_only():

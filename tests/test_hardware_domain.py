@@ -160,11 +160,11 @@ def test_randomization_effects_apply_on_hardware():
     with load("swingup", randomization=delayed) as env:
         env.reset()
         board = env.physics.qube.board
-        applied = []
+        written = []
         for volts in (1.0, 2.0, 0.5, 0.5):
             env.step(np.array([volts]))
-            applied.append(-board.applied_voltage)  # board sign: see hardware.conventions
-        assert applied == pytest.approx([0.0, 0.0, 1.0, 2.0])
+            written.append(-board.written_voltage)  # board sign: see hardware.conventions
+        assert written == pytest.approx([0.0, 0.0, 1.0, 2.0])
 
 
 @pytest.mark.parametrize("config, message", [

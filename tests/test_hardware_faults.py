@@ -98,7 +98,7 @@ def test_a_stalled_loop_stops_the_motor_and_resume_drives_again(stall, error):
         assert_motor_off(qube.board)
         qube.resume()
         qube.action(2.0)
-        assert qube.board.applied_voltage == 2.0
+        assert qube.board.written_voltage == 2.0
 
 
 def test_a_blocked_arm_is_a_stall_error_that_disabling_the_amplifier_clears():

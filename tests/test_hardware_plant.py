@@ -1,16 +1,20 @@
-"""The substitute board's plant: the closed-form model's physics plus what a real Qube adds."""
+"""The substitute board's plant: the closed-form model's physics plus what a real Qube adds.
+
+These tests check the board's integrator against the values `plant.py` documents for the estimated
+plant (`plant="estimated"`), each named here; the default Qube-Servo 2 plant, the real Qube's, has its
+effects tested in test_real_qube_substitute.py."""
 
 import math
 
 import numpy as np
 import pytest
-from hil_helpers import CLEAN_PLANT, Rig
+from hil_helpers import CLEAN_PLANT, ESTIMATED_PLANT, Rig
 from reference_dynamics import FurutaPendulum
 
 from qube_suite.angles import wrap_angle
 from qube_suite.devices.qube import parameters
 from qube_suite.hardware import _hil_sim
-from qube_suite.hardware.plant import plant_parameters
+from qube_suite.hardware.plant import ESTIMATED, plant_parameters
 
 PERIOD = 0.004
 
@@ -56,8 +60,8 @@ def test_changed_parameters_reach_the_plant():
 
 
 def test_inductance_delays_the_current_by_its_time_constant():
-    p = plant_parameters()
-    rig = Rig(plant={"arm_friction": 0.0}, frequency=10000.0)   # one 0.1 ms substep per sample
+    p = plant_parameters(overrides=ESTIMATED)
+    rig = Rig(plant={**ESTIMATED_PLANT, "arm_friction": 0.0}, frequency=10000.0)  # a 0.1 ms substep a sample
     rig.set_voltage(2.0)
     currents = [-rig.read()[0] for _ in range(3)]               # package sign
     tau = p["motor_inductance"] / p["motor_resistance"]
@@ -66,40 +70,41 @@ def test_inductance_delays_the_current_by_its_time_constant():
 
 
 def test_current_limit_holds_the_current():
-    rig = Rig(plant={"current_limit": 0.1})
+    rig = Rig(plant={**ESTIMATED_PLANT, "current_limit": 0.1})
     rig.set_voltage(3.0)                                        # 3 V / 8.4 ohm = 0.36 A unlimited
     current = -rig.read()[0]
     assert current == pytest.approx(0.1, abs=1e-9)
-    unlimited = Rig()
+    unlimited = Rig(plant=ESTIMATED)
     unlimited.set_voltage(3.0)
     assert -unlimited.read()[0] > 0.2
 
 
 def test_amplifier_saturates_at_its_voltage_limit():
-    rig = Rig(plant={"amplifier_voltage_limit": 4.0})
+    rig = Rig(plant={**ESTIMATED_PLANT, "amplifier_voltage_limit": 4.0})
     rig.set_voltage(9.0)
     assert abs(rig.board.applied_voltage) == 4.0
 
 
 def test_arm_friction_holds_the_arm_below_breakaway():
-    p = plant_parameters()
+    p = plant_parameters(overrides=ESTIMATED)
     breakaway = p["arm_friction"] * p["motor_resistance"] / p["motor_torque_constant"]  # 0.2 V
-    below = Rig(plant={"cable_stiffness": 0.0}).run([0.8 * breakaway] * 250)
+    below = Rig(plant={**ESTIMATED_PLANT, "cable_stiffness": 0.0}).run([0.8 * breakaway] * 250)
     assert np.all(below[:, [0, 2]] == 0.0)                      # exactly still: no creep
-    above = Rig(plant={"cable_stiffness": 0.0}).run([1.3 * breakaway] * 250)
+    above = Rig(plant={**ESTIMATED_PLANT, "cable_stiffness": 0.0}).run([1.3 * breakaway] * 250)
     assert above[-1, 0] > 0.05 and above[-1, 2] > 0.0
 
 
 def test_pendulum_friction_decays_swings_linearly_and_stops_near_hanging():
     friction = 2e-4
-    plant = {"pendulum_friction": friction, "arm_friction": 1.0,  # the arm held still by its friction
+    plant = {**ESTIMATED_PLANT, "pendulum_friction": friction,
+             "arm_friction": 1.0,                                  # the arm held still by its friction
              "bench_vibration": 0.0}                               # on a still bench: it sticks exactly
     states = Rig(plant=plant, state=[0.0, math.pi - 0.4, 0.0, 0.0]).run(np.zeros(2500))
     offset = np.vectorize(wrap_angle)(states[:, 1] - math.pi)
     size = np.abs(offset)
     peaks = [size[k] for k in range(1, len(size) - 1)
              if size[k] >= size[k - 1] and size[k] > size[k + 1] and size[k] > 0.05]
-    p = plant_parameters()
+    p = plant_parameters(overrides=ESTIMATED)
     mgl = p["pendulum_mass"] * p["gravity"] * p["pendulum_length"] / 2
     decrements = -np.diff(peaks)                                # per half swing
     np.testing.assert_allclose(decrements, 2 * friction / mgl, rtol=0.1)
@@ -116,7 +121,7 @@ def test_cable_spring_pulls_the_arm_towards_the_centre():
     rig = Rig(plant=plant, frequency=1000.0, state=[theta0, math.pi, 0.0, 0.0])
     rig.board.write_digital(np.array([0], np.uint32), 1, np.array([0], np.int8))  # no motor, no back-EMF
     rig.read()
-    p = plant_parameters()
+    p = plant_parameters(overrides=ESTIMATED)
     mp, lc, lr = p["pendulum_mass"], p["pendulum_length"] / 2, p["arm_length"]
     jp = parameters.pendulum_inertia(mp, p["pendulum_length"])
     axial = 0.5 * mp * parameters.PENDULUM_ROD_RADIUS**2
@@ -128,8 +133,8 @@ def test_cable_spring_pulls_the_arm_towards_the_centre():
 
 
 def test_spring_and_friction_leave_the_arm_inside_the_friction_band():
-    p = plant_parameters()
-    states = Rig(state=[1.5, math.pi, 0.0, 0.0]).run(np.zeros(1500))
+    p = plant_parameters(overrides=ESTIMATED)
+    states = Rig(plant=ESTIMATED, state=[1.5, math.pi, 0.0, 0.0]).run(np.zeros(1500))
     band = p["arm_friction"] / p["cable_stiffness"]
     assert abs(states[-1, 0]) <= band * 1.001 and states[-1, 0] < 1.5
     assert np.all(states[-20:, 2] == 0.0)
@@ -145,7 +150,7 @@ def test_disabled_amplifier_gives_no_torque():
 
 
 def test_long_stall_disables_the_amplifier_until_it_is_re_enabled():
-    rig = Rig(plant={"arm_friction": 1.0, "stall_time": 0.5})  # the arm cannot move
+    rig = Rig(plant={**ESTIMATED_PLANT, "arm_friction": 1.0, "stall_time": 0.5})  # the arm cannot move
     rig.set_voltage(6.0)
     flags = [rig.read()[2] for _ in range(130)]                 # 0.52 s
     assert flags[0].tolist() == [0, 1, 0]                       # stall detected, no error yet

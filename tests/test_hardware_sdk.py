@@ -77,7 +77,7 @@ def test_an_interrupt_inside_idle_leaves_the_watchdog_guarding_the_outputs(monke
     try:
         qube.action([-2.0])
         board = qube.board
-        assert board.applied_voltage == -2.0
+        assert board.written_voltage == -2.0
         InterruptibleHIL.armed = True
         with pytest.raises(KeyboardInterrupt):
             qube.idle()

@@ -23,9 +23,9 @@ BAD_ACTIONS = [np.array([np.nan]), np.array([np.inf]), np.array([True]), np.arra
 
 
 def assert_motor_off(board, amplifier=False):
-    assert board.applied_voltage == 0.0
+    assert board.written_voltage == 0.0          # the amplifier acts on it after the plant's latency
     if not amplifier:
-        assert not board.amplifier_enabled
+        assert board.applied_voltage == 0.0 and not board.amplifier_enabled  # disabling acts at once
 
 
 def hardware_gym(**kwargs):

@@ -99,7 +99,7 @@ def test_board_never_exceeds_its_limit_and_is_safe_after_any_exception(max_volta
             except SafetyStopError:
                 assert board.applied_voltage == 0.0 and not board.amplifier_enabled and qube.is_idle
             except ValueError:
-                assert board.applied_voltage == 0.0
+                assert board.written_voltage == 0.0
             except RuntimeError as error:
                 assert "idle" in str(error) and qube.is_idle
             assert abs(board.applied_voltage) <= max_voltage

@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+import os
 import shutil
 
 import numpy as np
@@ -12,7 +13,13 @@ from hil_helpers import CLEAN_PLANT, Rig
 from qube_suite import suite
 from qube_suite.devices.qube import parameters
 from qube_suite.hardware import _hil_sim, plant, quanser
-from qube_suite.hardware.plant import named_plant, plant_parameters
+from qube_suite.hardware.plant import (
+    DEFAULT_PLANTS,
+    ESTIMATED,
+    REAL_EFFECT_PARAMETERS,
+    named_plant,
+    plant_parameters,
+)
 
 REAL = "real_qube_servo2"
 STILL_CABLE = {"cable_rest_spread": 0.0, "cable_stiffness_spread": 0.0}
@@ -48,9 +55,32 @@ def test_the_real_qube_plant_is_its_calibration_file():
     assert values["voltage_deadzone"] == calibrated["actuation"]["voltage_deadzone"]
     assert values["cable_rest_angle"] == -calibrated["offsets"]["arm_encoder_offset"]
     assert values["cable_slack"] == calibrated["offsets"]["cable_slack"]
-    default = plant_parameters()
-    assert values["rotor_inertia"] > 5 * default["rotor_inertia"]          # not the default plant
-    assert default["latency"] == default["voltage_deadzone"] == default["cable_slack"] == 0.0
+    estimated = plant_parameters("qube_servo2_usb", ESTIMATED)
+    assert values["rotor_inertia"] > 5 * estimated["rotor_inertia"]        # not the estimated plant
+    assert estimated["latency"] == estimated["voltage_deadzone"] == estimated["cable_slack"] == 0.0
+
+
+def test_a_qube_servo2_substitute_integrates_the_real_qube_unless_told_otherwise():
+    real = named_plant(REAL)
+    assert DEFAULT_PLANTS == {"qube_servo2_usb": REAL, "qube_servo3_usb": ESTIMATED}
+    assert _hil_sim.HIL("qube_servo2_usb").plant == real == plant_parameters()
+    with suite.load("qube_hardware", "balance", environment_kwargs={"time_limit": 0.1}) as env:
+        env.reset()
+        assert env.physics.qube.board.plant == real
+    estimated = _hil_sim.HIL("qube_servo2_usb", plant=ESTIMATED).plant
+    assert estimated["rotor_inertia"] == parameters.NOMINAL["rotor_inertia"] < real["rotor_inertia"] / 5
+    assert all(estimated[name] == 0.0 for name in REAL_EFFECT_PARAMETERS)
+    # a mapping changes the default plant; a whole named plant with changes, another
+    assert _hil_sim.HIL("qube_servo2_usb", plant={"latency": 0.0}).plant == {**real, "latency": 0.0}
+    changed = _hil_sim.HIL("qube_servo2_usb", plant={**named_plant(ESTIMATED), "arm_friction": 2e-3}).plant
+    assert changed == {**estimated, "arm_friction": 2e-3}
+
+
+def test_a_qube_servo3_substitute_keeps_the_estimated_plant():
+    """No recordings of a real Qube-Servo 3 exist: its substitute integrates the estimated plant."""
+    default = _hil_sim.HIL("qube_servo3_usb").plant
+    assert default == named_plant(ESTIMATED, "qube_servo3_usb")
+    assert default["motor_resistance"] == 7.5 and default["latency"] == 0.0
 
 
 def test_a_new_calibration_flows_into_the_plant(tmp_path, monkeypatch):
@@ -65,10 +95,15 @@ def test_a_new_calibration_flows_into_the_plant(tmp_path, monkeypatch):
     monkeypatch.setattr(plant, "PLANTS", {REAL: recalibrated})
     values = _hil_sim.HIL("qube_servo2_usb", plant=REAL).plant
     assert values["rotor_inertia"] == 2.0e-5 and values["latency"] == 0.008 and values["cable_slack"] == 0.3
+    content["parameters"]["rotor_inertia"] = 3.0e-5                   # the same file changed in place
+    copy.write_text(yaml.safe_dump(content))
+    os.utime(copy, ns=(copy.stat().st_atime_ns, copy.stat().st_mtime_ns + 1_000_000))
+    assert _hil_sim.HIL("qube_servo2_usb", plant=REAL).plant["rotor_inertia"] == 3.0e-5
 
 
 def test_bad_plant_names_get_a_clear_error():
-    with pytest.raises(ValueError, match="unknown plant 'real_qube'.*real_qube_servo2"):
+    listed = "unknown plant 'real_qube'; named plants: estimated, real_qube_servo2 "
+    with pytest.raises(ValueError, match=listed):
         _hil_sim.HIL(plant="real_qube")
     with pytest.raises(ValueError, match="unknown plant"):
         quanser.QubeServo2(plant="real_qube")

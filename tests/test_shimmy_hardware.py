@@ -8,6 +8,7 @@ import pytest
 from conftest import requires_offscreen_gl
 
 from qube_suite import suite
+from qube_suite.hardware.plant import ESTIMATED
 from qube_suite.tasks import SUITE
 
 pytestmark = pytest.mark.hardware
@@ -29,7 +30,10 @@ def test_shimmy_check_env_passes_on_the_substitute_board():
     from gymnasium.utils.env_checker import check_env
     from shimmy import DmControlCompatibilityV0
 
-    env = DmControlCompatibilityV0(suite.load("qube_hardware", "balance"))
+    # On the estimated plant: check_env's determinism check wants a seeded reset's first step to repeat
+    # exactly. On the real Qube's plant (the default) it fails (measured 2026-11-28): a reset brings the
+    # Qube to rest within its tolerances, not to one state, and the two first observations differ.
+    env = DmControlCompatibilityV0(suite.load("qube_hardware", "balance", domain_kwargs={"plant": ESTIMATED}))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # shimmy's dict observation and float64 are by design
         check_env(env, skip_render_check=True)

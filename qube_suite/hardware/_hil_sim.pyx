@@ -33,8 +33,8 @@ correlation time `vibration_time`, from the board's random stream seeded by
 lasting `stall_time` disables the amplifier until its enable line is toggled).
 A disabled amplifier leaves the motor open-circuit: no current, no torque.
 
-What a real Qube adds (`plant.REAL_EFFECT_PARAMETERS`, all off by default; the plant
-`real_qube_servo2` has them): the amplifier's `latency` (a written voltage acts that
+What a real Qube adds (`plant.REAL_EFFECT_PARAMETERS`, all off in the estimated plant; the
+real Qube's plant `real_qube_servo2`, a Qube-Servo 2's default (`plant.DEFAULT_PLANTS`), has them): the amplifier's `latency` (a written voltage acts that
 long after its write, to the substep; the amplifier's enable acts at once, so a
 disabled amplifier stops the motor without delay) and `voltage_deadzone`; the
 cable's rest angle and a slack band around it, -kc deadband(theta - rest, slack);
@@ -505,12 +505,13 @@ cdef class HIL:
     """A Qube-Servo board with a simulated Qube: Quanser's HIL API, plus inspection for tests.
 
     HIL(card_type=None, card_identifier="0", *, plant=None, realtime=False, seed=0): like
-    Quanser's HIL, opens the board when `card_type` is given. `plant` overrides
-    plant parameters by long name (`qube_suite.hardware.plant`), or is a device's own
+    Quanser's HIL, opens the board when `card_type` is given, with the card's default plant
+    (`plant.DEFAULT_PLANTS`). `plant` overrides that plant's parameters by long name
+    (`qube_suite.hardware.plant`), or is a device's own
     plant (a `board_plant.BoardPlant`): the board is then that device's card, with its
     channels; a board opened as a card that a device's substitute declares, without a
     plant, makes that device's plant. `plant` may also name a plant of `plant.PLANTS`
-    (e.g. "real_qube_servo2"). `realtime=True` paces tasks by the wall clock;
+    ("estimated", "real_qube_servo2"). `realtime=True` paces tasks by the wall clock;
     `seed` (a non-negative integer) seeds the random stream of the bench's sway (and of the
     session's cable, for a plant that spreads it).
     """
@@ -997,6 +998,17 @@ cdef class HIL:
             volts, enabled = np.zeros(self.n_analog_outputs), np.zeros(self.n_analog_outputs, dtype=np.uint8)
             self._device_outputs(volts, enabled)
             return np.asarray(volts).copy()
+
+    @property
+    def written_voltage(self):
+        """Voltage (V, board sign) last written to the motor's analog output, as the board holds it: what
+        the amplifier applies `latency` later (`applied_voltage`), while enabled. With a device's own
+        plant, an array: one per analog output."""
+        with self.lock:
+            self._sync()
+            if self.device_plant is None:
+                return self.out.analog[0]
+            return np.array([self.out.analog[j] for j in range(self.n_analog_outputs)])
 
     @property
     def amplifier_enabled(self):

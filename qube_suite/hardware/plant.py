@@ -5,10 +5,22 @@ nominal model the way a real one does. Its parameters are the nominal table of
 `qube_suite.devices.qube.parameters` (same long names), with the accuracy options that are
 zero in the nominal model switched on, plus the amplifier's limits, which the
 nominal model does not have. `plant_parameters(board_type, overrides)` gives the
-full set; `HIL(plant={...})` and `QubeServo2(plant={...})` take overrides by
-these names.
+full set; `HIL(plant=...)` and `QubeServo2(plant=...)` take overrides by these
+names (on top of the board's default plant) or the name of a plant of `PLANTS`.
 
-Defaults that differ from the nominal model. Values marked *estimate* are ours,
+Which plant a board integrates without `plant=` is `DEFAULT_PLANTS`, by board type:
+
+- a Qube-Servo 2 (`qube_servo2_usb`): `"real_qube_servo2"`, the plant like a real Qube
+  (below), calibrated from recordings of TU Darmstadt's Qube-Servo 2;
+- a Qube-Servo 3 (`qube_servo3_usb`): `"estimated"`, the tables of this module alone.
+  No recordings of a real Qube-Servo 3 exist to calibrate one from, so its plant keeps
+  our estimates.
+
+The estimated plant (`plant="estimated"`, the Qube-Servo 2's default until 2026-11-28)
+is the nominal table with the defaults below. It is about six times easier to predict
+than a real Qube (docs/calibration.md); figures measured on it are labelled so.
+
+The estimated plant's values that differ from the nominal model. Values marked *estimate* are ours,
 chosen to be physically plausible: no published identification of a
 Qube-Servo 2 gives them.
 
@@ -50,14 +62,14 @@ Qube-Servo 2 gives them.
   does, instead of resting on its friction inside a count of upright. Its action
   on the arm is far below the arm's friction and is left out. 0 turns it off.
 
-A plant like a real Qube: `plant="real_qube_servo2"` (`PLANTS`; `HIL(plant=...)`,
-`QubeServo2(plant=...)`, `domain_kwargs={"plant": ...}` of `qube_hardware`) is TU Darmstadt's
-Qube-Servo 2 as calibrated from its recordings (`devices/qube/real_qube_servo2.yaml`, read when
-the board opens, so a recalibration flows into it): its parameters (rotor inertia 8x nominal,
-the motor's gain, both joints' damping and Coulomb friction, the cable's stiffness) and the
+The plant like a real Qube, the Qube-Servo 2's default: `plant="real_qube_servo2"` (`PLANTS`;
+`HIL(plant=...)`, `QubeServo2(plant=...)`, `domain_kwargs={"plant": ...}` of `qube_hardware`) is
+TU Darmstadt's Qube-Servo 2 as calibrated from its recordings (`devices/qube/real_qube_servo2.yaml`,
+read when the board opens, so a recalibration flows into it): its parameters (rotor inertia 8x
+nominal, the motor's gain, both joints' damping and Coulomb friction, the cable's stiffness) and the
 effects it identified, by the plant parameters of `REAL_EFFECT_PARAMETERS`: `latency`,
 `voltage_deadzone`, `cable_rest_angle` and `cable_slack`. On top, what that calibration's
-model does not contain (each off, 0, in the default plant):
+model does not contain (each off, 0, in the estimated plant):
 
 - `cable_rest_spread` = 0.18 rad: the cable's rest is drawn anew in each session (board
   opened or reseeded), normal with this standard deviation about the calibrated rest. The
@@ -75,7 +87,7 @@ model does not contain (each off, 0, in the default plant):
   analysis tools and compensation methods for the control of machines with friction",
   Automatica 30(7), 1994); the ratio is ours.
 
-The default plant's motor inductance and bench sway stay on as well.
+The estimated plant's motor inductance and bench sway stay on as well.
 
 For `qube_servo3_usb` the motor rows are those of the Qube-Servo 3 user manual
 (table 2.2): Rm = 7.5 ohm, kt = km = 0.0422, Jm = 1.4e-6 kg m^2, Lm = 1.15 mH.
@@ -86,7 +98,9 @@ the nominal model.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+import os
 import types
 from collections.abc import Mapping
 
@@ -145,7 +159,7 @@ _REAL_EFFECTS = (
 
 REAL_EFFECT_PARAMETERS: types.MappingProxyType[str, PlantParameter] = types.MappingProxyType(
     {p.name: p for p in _REAL_EFFECTS})
-"""Effects a real Qube shows that the default plant leaves out (all 0: off), by long name."""
+"""Effects a real Qube shows that the estimated plant leaves out (all 0: off), by long name."""
 
 _MAY_BE_NEGATIVE = frozenset({"cable_rest_angle"})
 
@@ -171,8 +185,8 @@ _ZERO_ALLOWED = frozenset({"arm_damping", "pendulum_damping", "arm_friction", "p
 
 def plant_parameters(board_type: str = "qube_servo2_usb",
                      overrides: Mapping[str, float] | str | None = None) -> dict[str, float]:
-    """Every plant parameter of a `board_type` Qube, updated by `overrides`: a mapping by long name,
-    or the name of a plant of `PLANTS`.
+    """Every plant parameter of a `board_type` Qube: of the plant of `PLANTS` that `overrides` names,
+    or of the board's default plant (`DEFAULT_PLANTS`) updated by `overrides`, a mapping by long name.
 
     Raises ValueError for an unknown board type, an unknown plant or parameter name (listing the
     valid ones), a named plant of another board type, or a value that is not finite, negative
@@ -181,12 +195,14 @@ def plant_parameters(board_type: str = "qube_servo2_usb",
     if board_type not in BOARD_MOTORS:
         raise ValueError(f"unknown board type {board_type!r}; valid: {', '.join(BOARD_MOTORS)}")
     if isinstance(overrides, str):
-        overrides = named_plant(overrides, board_type)
+        overrides = _named_overrides(overrides, board_type)
+    else:
+        overrides = {**_named_overrides(DEFAULT_PLANTS[board_type], board_type), **(overrides or {})}
     values = dict(parameters.NOMINAL)
     values.update(HARDWARE_DEFAULTS)
     values.update(BOARD_MOTORS[board_type])
     values.update({p.name: p.default for p in _AMPLIFIER + _BENCH + _REAL_EFFECTS})
-    for name, value in (overrides or {}).items():
+    for name, value in overrides.items():
         if name not in values:
             raise ValueError(f"unknown plant parameter {name!r}; valid names: {', '.join(values)}")
         value = float(value)
@@ -201,28 +217,40 @@ def plant_parameters(board_type: str = "qube_servo2_usb",
 
 @dataclasses.dataclass(frozen=True)
 class NamedPlant:
-    """A plant made from a calibration of a real Qube, plus what that calibration's model leaves out.
+    """A plant by name: the estimated plant's tables, updated by a calibration of a real Qube and by
+    what that calibration's model leaves out.
 
     Attributes:
-        board_type: the board the calibrated Qube sat on.
-        calibration: path of the calibration file (`qube_suite.calibration`): its parameters and its
-            identified effects (latency, dead zone, the cable's rest and slack) are read when the
-            plant is made, so a new calibration flows into it.
+        board_type: the board the calibrated Qube sat on (None: any board).
+        calibration: path of the calibration file (`qube_suite.calibration`), or None: the estimated
+            plant's own values. Its parameters and its identified effects (latency, dead zone, the
+            cable's rest and slack) are read when the plant is made, so a new calibration flows into it.
         unmodelled: plant parameters the calibration does not identify, by long name (see the module).
     """
 
-    board_type: str
-    calibration: str
+    board_type: str | None
+    calibration: str | None
     unmodelled: Mapping[str, float]
 
     def overrides(self) -> dict[str, float]:
-        """The plant's parameters by long name, as overrides of the default plant."""
-        effects = parameters.effects_of(self.calibration)
-        values = parameters.values_of(self.calibration)
-        values.update({plant_name: effects[name] for name, plant_name in _CALIBRATED_EFFECTS.items()
-                       if name in effects})
+        """The plant's parameters by long name, as overrides of the estimated plant."""
+        values: dict[str, float] = {}
+        if self.calibration is not None:
+            values.update(_calibrated(self.calibration, os.stat(self.calibration).st_mtime_ns))
         values.update(self.unmodelled)
         return values
+
+
+@functools.lru_cache(maxsize=8)
+def _calibrated(path: str, modified: int) -> types.MappingProxyType[str, float]:
+    """The parameters and reproduced effects (`_CALIBRATED_EFFECTS`) of the calibration file at `path`, by
+    plant parameter name. `modified` (the file's modification time, ns) keys the cache: a board opens with
+    the file as it is, read once per change instead of at every opening (28 ms of YAML each)."""
+    effects = parameters.effects_of(path)
+    values = parameters.values_of(path)
+    values.update({plant_name: effects[name] for name, plant_name in _CALIBRATED_EFFECTS.items()
+                   if name in effects})
+    return types.MappingProxyType(values)
 
 
 _CALIBRATED_EFFECTS = {"latency_seconds": "latency", "voltage_deadzone": "voltage_deadzone",
@@ -230,23 +258,39 @@ _CALIBRATED_EFFECTS = {"latency_seconds": "latency", "voltage_deadzone": "voltag
 """A calibration's effects (`parameters.CALIBRATED_EFFECTS`) by the plant parameter that reproduces them;
 the pendulum encoder's offset (a millirad) is left out: the board's encoders count from power-up."""
 
+ESTIMATED = "estimated"
+"""The name of the estimated plant: this module's tables alone (see the module docstring)."""
+
 PLANTS: types.MappingProxyType[str, NamedPlant] = types.MappingProxyType({
+    ESTIMATED: NamedPlant(None, None, types.MappingProxyType({})),
     "real_qube_servo2": NamedPlant("qube_servo2_usb", parameters.REAL_QUBE_SERVO2, types.MappingProxyType({
         "cable_rest_spread": 0.18,
         "cable_stiffness_spread": 0.4,
         "arm_breakaway": 6.0e-4,
     })),
 })
-"""Named plants: `plant="real_qube_servo2"` (see the module docstring)."""
+"""Named plants: `plant="estimated"`, `plant="real_qube_servo2"` (see the module docstring)."""
+
+DEFAULT_PLANTS: types.MappingProxyType[str, str] = types.MappingProxyType({
+    "qube_servo2_usb": "real_qube_servo2",
+    "qube_servo3_usb": ESTIMATED,     # no recordings of a real Qube-Servo 3 to calibrate a plant from
+})
+"""The plant of `PLANTS` that a board of each type integrates without `plant=`."""
 
 
 def named_plant(name: str, board_type: str = "qube_servo2_usb") -> dict[str, float]:
-    """The overrides of the plant `name` of `PLANTS` on a `board_type` board; ValueError for an unknown
-    name (listing the valid ones) or a plant of another board type."""
+    """Every parameter of the plant `name` of `PLANTS` on a `board_type` board: a whole plant, which
+    `plant=` takes with changes (`{**named_plant("estimated"), "arm_friction": 2e-3}`). ValueError for
+    an unknown name (listing the valid ones) or a plant of another board type."""
+    return plant_parameters(board_type, name)
+
+
+def _named_overrides(name: str, board_type: str) -> dict[str, float]:
+    """The overrides of the estimated plant that make the plant `name` of `PLANTS` on a `board_type` board."""
     if name not in PLANTS:
         raise ValueError(f"unknown plant {name!r}; named plants: {', '.join(PLANTS)} (or a mapping of plant "
                          "parameters by long name)")
     plant = PLANTS[name]
-    if plant.board_type != board_type:
+    if plant.board_type not in (None, board_type):
         raise ValueError(f"the plant {name!r} is a {plant.board_type}'s, not a {board_type}'s")
     return plant.overrides()

@@ -171,7 +171,8 @@ where it was over this long (s): a Qube at rest (a count may flicker at its edge
 MAX_WATCHDOG_TIMEOUT = 0.15
 """Largest `watchdog_timeout` (s). The watchdog is what stops the motor when the process driving it
 dies or hangs; it must expire before an arm driven from rest at its centre reaches the 120 degree
-arm limit: 0.16 s at 10 V on the substitute's plant (0.23 s at 5 V, 0.37 s at 2 V)."""
+arm limit: 0.16 s at 10 V on the substitute's estimated plant (0.23 s at 5 V, 0.37 s at 2 V), 0.18 s on
+the real Qube's (0.25 s, 0.41 s)."""
 
 RETURN_VOLTAGE = 3.0
 """Largest voltage (V) `return_arm` lets through while the arm is beyond `arm_limit`."""
@@ -317,7 +318,8 @@ class QuanserWrapper:
     the device's board type (a real board through Quanser's SDK). identifier: the
     board number. frequency (Hz): the sample rate that `action` follows.
     max_voltage (V): the clip. plant: parameters of the substitute's plant
-    (`qube_suite.hardware.plant`) by long name, a named plant (`plant.PLANTS`), or a device's own
+    (`qube_suite.hardware.plant`) by long name, changing the board's default plant
+    (`plant.DEFAULT_PLANTS`), a named plant (`plant.PLANTS`), or a device's own
     plant for it (`qube_suite.hardware.board_plant.BoardPlant`). realtime: the substitute follows the
     wall clock (default False, fast); a real board always does. watchdog_timeout (s): the
     board zeroes its outputs when no action reloads it for this long.

@@ -4,10 +4,10 @@
 - `mild`: manufacturing tolerances of the published parameters; no effects.
 - `moderate`: wider parameter ranges, some friction and cable spring, and sensor and
   actuator effects, for policies meant to be robust in general.
-- `sim2real`: covers what a real Qube, and the hardware substitute's plant, add to
-  the nominal model: Coulomb friction on both joints and the encoder cable's
-  spring (ranges from 0 to twice the plant's estimates of 1e-3 N m, 5e-5 N m and
-  1e-3 N m/rad), 2048-count encoders, velocities from Quanser's 50 rad/s filter,
+- `sim2real`: covers what a real Qube, and the hardware substitute's estimated plant
+  (`plant="estimated"`), add to the nominal model: Coulomb friction on both joints and the
+  encoder cable's spring (ranges from 0 to twice that plant's estimates of 1e-3 N m, 5e-5 N m
+  and 1e-3 N m/rad), 2048-count encoders, velocities from Quanser's 50 rad/s filter,
   and up to one control step of actuation lag (board latency; the motor
   inductance's electrical time constant, Lm / Rm = 0.14 ms, is far shorter). The
   amplifier's limits are left out: within the tasks' voltage limits (3 V by
@@ -18,7 +18,7 @@
   pendulum length +-10 %, motor resistance +-25 %, torque and back-EMF constants 0.8 to
   1.15 times, rotor inertia 0.7 to 12 times (log-uniform), arm damping 0.3 to 40 times and
   pendulum damping 0.3 to 10 times, Coulomb friction 0 to 4e-3 N m on the arm and 0 to 2e-4
-  N m on the pendulum (four times the substitute's plant), cable stiffness 0 to 5e-3
+  N m on the pendulum (four times the estimated plant's), cable stiffness 0 to 5e-3
   N m/rad; arm mass and length as in `sim2real`; effects: `sim2real`'s encoders and
   velocity filter, `real_qube`'s command delay (0 to 12 ms), voltage offset and dead zone.
   For policies trained once for many plants (with observation history:

@@ -238,8 +238,10 @@ class Physics(BoardClockAndLed, MeasuredState, control.Physics):
             `board` names, else "qube_servo2".
         board: "simulated" (the substitute) or the device's card type, "qube_servo2_usb" or
             "qube_servo3_usb" (a real Qube).
-        plant: parameters of the substitute's plant (`qube_suite.hardware.plant`) by long name, or
-            a named plant such as "real_qube_servo2" (`plant.PLANTS`).
+        plant: parameters of the substitute's plant (`qube_suite.hardware.plant`) by long name, changing
+            the device's default plant (`plant.DEFAULT_PLANTS`: the real Qube's for a Qube-Servo 2, the
+            estimated one for a Qube-Servo 3), or a named plant, "estimated" or "real_qube_servo2"
+            (`plant.PLANTS`).
         realtime: pace the substitute by the wall clock (a real board always is).
         max_voltage: the wrapper's voltage clip (V).
         reset_voltage_limit: largest voltage of the reset controllers (V).

@@ -38,7 +38,7 @@ from qube_suite.calibration.calibration_file import Calibration
 from qube_suite.calibration.experiment import board_metadata
 from qube_suite.calibration.identifiability import Fitted
 from qube_suite.devices.qube_disk import parameters as disk_parameters
-from qube_suite.hardware.plant import plant_parameters
+from qube_suite.hardware.plant import ESTIMATED, plant_parameters
 from qube_suite.recording import Recorder
 
 DISK_MASS_BIAS = 0.04
@@ -73,7 +73,8 @@ MIN_SECONDS = measurements.MIN_SECONDS
 
 def model(board_type: str) -> fit.Model:
     """The engine's model of the disk on `board_type` (its rotor's inertia is the board's Qube's)."""
-    held = {**disk_parameters.NOMINAL, "rotor_inertia": plant_parameters(board_type)["rotor_inertia"]}
+    rotor_inertia = plant_parameters(board_type, ESTIMATED)["rotor_inertia"]
+    held = {**disk_parameters.NOMINAL, "rotor_inertia": rotor_inertia}
     fixed_inertia = held["rotor_inertia"] + held["hub_inertia"]
     radius = held["disk_radius"]
 
@@ -133,7 +134,7 @@ def calibrate_recording(path: str | os.PathLike, board_type: str | None = None) 
     found = intervals.statistical_intervals(result, UNKNOWNS)
     values = result.values
     estimated = [q.name for q in UNKNOWNS if q.name in disk_parameters.PARAMETERS]
-    motor = plant_parameters(m.board_type)
+    motor = plant_parameters(m.board_type, ESTIMATED)
     parameters = disk_parameters.resolve({**{name: motor[name] for name in disk_parameters.MOTOR_NAMES},
                                           **{name: values[name] for name in estimated},
                                           "motor_torque_constant": values["motor_back_emf"]})
