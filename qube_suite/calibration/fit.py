@@ -24,7 +24,10 @@ double derivative or momenta at window ends did (pendulum mass 4 to 10 % low on 
 default substitute, against 1 % now). The motor torque is kt times the current read
 at the end of each sample interval. Coulomb friction is exact: a window enters a
 joint's equation only if the joint slides throughout (speed above `SLIDING_SPEED`),
-so the fit never models sticking.
+so the fit never models sticking. The voltage-only fit (`fit_voltage`) also takes the arm's
+windows in which it reverses without sticking (`REVERSAL_SAMPLES`): a real Qube's chirps
+reverse the arm 20 times a second at their start, and only there does the arm creep across
+the cable's pull near the encoder's zero.
 
 The residuals, weighted by each equation's own spread, are minimised over the
 unknowns scaled near 1 (`identifiability.FITTED`, `OFFSETS`) by
@@ -47,7 +50,7 @@ from collections.abc import Callable
 
 import mujoco.minimize
 import numpy as np
-from scipy.ndimage import minimum_filter1d
+from scipy.ndimage import label, maximum_filter1d, minimum_filter1d
 
 from qube_suite.calibration.identifiability import FITTED, OFFSETS, Fitted
 from qube_suite.calibration.measurements import PENDULUM_ENCODERS, Encoders, Measurements
@@ -55,6 +58,10 @@ from qube_suite.devices.qube import parameters
 
 SLIDING_SPEED = 0.05
 """A joint counts as sliding where its speed stays above this (rad/s) across the smoothing window."""
+REVERSAL_SAMPLES = 3
+"""Longest run of samples below `SLIDING_SPEED` of a reversal that the arm is driven through rather than
+stuck in (12 ms at 250 Hz; a 1.5 V, 10 Hz chirp passes in one sample): where `signals` takes reversals,
+a window of the arm's equation may hold such runs, but no longer one."""
 MAX_LATENCY = 3
 """Largest latency (samples) the fit considers."""
 
@@ -86,7 +93,8 @@ class Signals:
     starts: np.ndarray
     """First samples of the momentum-balance intervals the fit may use."""
     arm_sliding: np.ndarray
-    """For each interval: whether the arm slides throughout (its friction torque is then known)."""
+    """For each interval: whether the arm slides throughout, or where reversals are taken never sticks
+    (its friction torque is then known)."""
     pendulum_sliding: np.ndarray | None
     """For each interval: whether the pendulum slides throughout (None without a pendulum)."""
     block: np.ndarray
@@ -94,9 +102,11 @@ class Signals:
     sample_time: float
 
 
-def signals(measurements: Measurements, latency: int, samples: np.ndarray | None = None) -> Signals:
+def signals(measurements: Measurements, latency: int, samples: np.ndarray | None = None,
+            reversals: bool = False) -> Signals:
     """The fit's inputs from `measurements` for `latency` (samples), using only the sample indices
-    `samples` (None: all; the filter's edges and the first samples are never used)."""
+    `samples` (None: all; the filter's edges and the first samples are never used). `reversals`: the
+    arm's equation also takes the windows where it reverses without sticking (`REVERSAL_SAMPLES`)."""
     theta, dtheta = measurements.derivatives(measurements.theta)
     pendulum = measurements.alpha
     alpha, dalpha = (None, None) if pendulum is None else measurements.derivatives(pendulum)
@@ -120,9 +130,15 @@ def signals(measurements: Measurements, latency: int, samples: np.ndarray | None
                                 origin=-(INTERVAL // 2)) > SLIDING_SPEED
         return slow[starts]
 
+    def never_sticking(speed: np.ndarray) -> np.ndarray:
+        runs, _ = label(np.abs(speed) <= SLIDING_SPEED)
+        stuck = (np.bincount(runs) > REVERSAL_SAMPLES)[runs] & (runs > 0)
+        return maximum_filter1d(stuck, INTERVAL + 1 + 2 * edge, origin=-(INTERVAL // 2))[starts] == 0
+
     return Signals(theta=theta, alpha=alpha, dtheta=dtheta, dalpha=dalpha, current=current,
                    current_after=np.append(current[1:], current[-1]), voltage_before=voltage_before,
-                   rows=np.flatnonzero(usable), starts=starts, arm_sliding=sliding(dtheta),
+                   rows=np.flatnonzero(usable), starts=starts,
+                   arm_sliding=never_sticking(dtheta) if reversals else sliding(dtheta),
                    pendulum_sliding=None if dalpha is None else sliding(dalpha),
                    block=(measurements.time / BLOCK_SECONDS).astype(int),
                    sample_time=measurements.sample_time)
@@ -410,8 +426,9 @@ side of the best): its cost has local minima in the slack, which least squares w
 
 def voltage_signals(measurements: Measurements, samples: np.ndarray | None = None) -> Signals:
     """The voltage-only fit's inputs from `measurements` (the latency enters later, in
-    `voltage_equations`); `samples` as for `signals`."""
-    return signals(dataclasses.replace(measurements, current=np.zeros(len(measurements))), 0, samples)
+    `voltage_equations`), the arm's reversals taken; `samples` as for `signals`."""
+    return signals(dataclasses.replace(measurements, current=np.zeros(len(measurements))), 0, samples,
+                   reversals=True)
 
 
 def delayed_voltage(voltage: np.ndarray, latency: float) -> np.ndarray:
