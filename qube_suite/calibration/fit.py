@@ -24,10 +24,10 @@ double derivative or momenta at window ends did (pendulum mass 4 to 10 % low on 
 default substitute, against 1 % now). The motor torque is kt times the current read
 at the end of each sample interval. Coulomb friction is exact: a window enters a
 joint's equation only if the joint slides throughout (speed above `SLIDING_SPEED`),
-so the fit never models sticking. The voltage-only fit (`fit_voltage`) also takes the arm's
-windows in which it reverses without sticking (`REVERSAL_SAMPLES`): a real Qube's chirps
-reverse the arm 20 times a second at their start, and only there does the arm creep across
-the cable's pull near the encoder's zero.
+so the fit never models sticking. The voltage-only fit (`fit_voltage`) can also take the
+arm's windows in which it reverses without sticking (`REVERSAL_SAMPLES`, `reversals=True`): a
+real Qube's chirps reverse the arm 20 times a second at their start, and only there does the
+arm creep across the cable's pull near the encoder's zero.
 
 The residuals, weighted by each equation's own spread, are minimised over the
 unknowns scaled near 1 (`identifiability.FITTED`, `OFFSETS`) by
@@ -424,11 +424,12 @@ SLACK_GRID = tuple(SLACK_STEP * k for k in range(5))
 side of the best): its cost has local minima in the slack, which least squares would stop in."""
 
 
-def voltage_signals(measurements: Measurements, samples: np.ndarray | None = None) -> Signals:
+def voltage_signals(measurements: Measurements, samples: np.ndarray | None = None,
+                    reversals: bool = False) -> Signals:
     """The voltage-only fit's inputs from `measurements` (the latency enters later, in
-    `voltage_equations`), the arm's reversals taken; `samples` as for `signals`."""
+    `voltage_equations`); `samples` and `reversals` as for `signals`."""
     return signals(dataclasses.replace(measurements, current=np.zeros(len(measurements))), 0, samples,
-                   reversals=True)
+                   reversals)
 
 
 def delayed_voltage(voltage: np.ndarray, latency: float) -> np.ndarray:
@@ -524,7 +525,7 @@ def _voltage_residual(x, signals_, voltages, latency, weights) -> np.ndarray:
 
 def fit_voltage(recordings: list[Measurements], samples: list[np.ndarray | None] | None = None,
                 latency: float | None = None, free: tuple[str, ...] | None = None,
-                slack: float | None = None) -> VoltageFitResult:
+                slack: float | None = None, reversals: bool = False) -> VoltageFitResult:
     """Fit the voltage-only unknowns to several `recordings` at once, each on its sample indices
     `samples` (None: all).
 
@@ -532,9 +533,12 @@ def fit_voltage(recordings: list[Measurements], samples: list[np.ndarray | None]
     `free`: the unknowns fitted (None: all of `VOLTAGE_ONLY`); the others stay at their nominal value
     (0 for the friction-like ones and the offsets), which is how the benchmark measures what each
     part of the model buys. `slack`: the cable's slack (rad; None: searched on `SLACK_GRID` if free).
+    `reversals`: the arm's equation also takes the windows where it reverses without sticking
+    (`signals`).
     """
     samples = samples or [None] * len(recordings)
-    signals_ = tuple(voltage_signals(m, chosen) for m, chosen in zip(recordings, samples, strict=True))
+    signals_ = tuple(voltage_signals(m, chosen, reversals)
+                     for m, chosen in zip(recordings, samples, strict=True))
     voltages = tuple(m.voltage for m in recordings)
     free = VOLTAGE_NAMES if free is None else free
     unknown = set(free) - set(VOLTAGE_NAMES)
