@@ -108,8 +108,8 @@ def calibrate_recordings(paths: Sequence[str | os.PathLike], device: str = "qube
     `free`: the unknowns of the voltage-only fit (None: all); `reversals`: it also takes the windows
     where the arm reverses without sticking (`fit.signals`): on eight or more of a real Qube's chirps
     it predicts held-out chirps better, on two or four it does not (docs/calibration.md, "A real
-    Qube"), so it is off by default. Raises ValueError (one line, naming
-    the file) for a recording that cannot calibrate; nothing is written here.
+    Qube"), so it is off by default. Raises ValueError (one line, naming the file) for a recording
+    that cannot calibrate; nothing is written here.
     """
     if not paths:
         raise ValueError("no recordings given")
