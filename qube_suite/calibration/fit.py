@@ -422,6 +422,10 @@ SLACK_STEP = 0.2
 SLACK_GRID = tuple(SLACK_STEP * k for k in range(5))
 """Half-widths of the cable's slack band (rad) the voltage-only fit tries (then half a step either
 side of the best): its cost has local minima in the slack, which least squares would stop in."""
+REVERSALS_SLACK_STEP = 0.1
+"""The slack grid's step (rad) where the fit takes the arm's reversals: they show the cable near its rest,
+where the cost's two minima on a real Qube's chirps (0.1 and 0.5 rad) are closer than `SLACK_STEP`
+resolves (on four chirps the coarse grid stopped in the worse one)."""
 
 
 def voltage_signals(measurements: Measurements, samples: np.ndarray | None = None,
@@ -534,7 +538,7 @@ def fit_voltage(recordings: list[Measurements], samples: list[np.ndarray | None]
     (0 for the friction-like ones and the offsets), which is how the benchmark measures what each
     part of the model buys. `slack`: the cable's slack (rad; None: searched on `SLACK_GRID` if free).
     `reversals`: the arm's equation also takes the windows where it reverses without sticking
-    (`signals`).
+    (`signals`), and the slack's grid is finer (`REVERSALS_SLACK_STEP`).
     """
     samples = samples or [None] * len(recordings)
     signals_ = tuple(voltage_signals(m, chosen, reversals)
@@ -581,10 +585,11 @@ def fit_voltage(recordings: list[Measurements], samples: list[np.ndarray | None]
         best = solve(best[3], slack, best[0]) + (best[3],)
     elif "cable_slack" in free:  # a grid (local minima), then half its step either side of the best
         lat, linear = best[3], best[0]
-        for slack in SLACK_GRID[1:]:
+        step = REVERSALS_SLACK_STEP if reversals else SLACK_STEP
+        for slack in (step * k for k in range(1, round(SLACK_GRID[-1] / step) + 1)):
             best = min(best, solve(lat, slack, linear) + (lat,), key=lambda f: f[2])
         chosen = best[0][slack_index] * VOLTAGE_SCALES[slack_index]
-        for slack in (chosen - 0.5 * SLACK_STEP, chosen + 0.5 * SLACK_STEP):
+        for slack in (chosen - 0.5 * step, chosen + 0.5 * step):
             if slack > 0.0:
                 best = min(best, solve(lat, slack, linear) + (lat,), key=lambda f: f[2])
     x, weights, _, lat = best
