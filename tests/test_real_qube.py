@@ -166,6 +166,27 @@ def test_calibrating_on_real_chirps_predicts_another_far_better_than_nominal(tmp
     assert calibrated < 0.5 * nominal
 
 
+@pytest.mark.skipif(not os.path.isdir(REAL_QUBE),
+                    reason=f"recordings of a real Qube not found at {REAL_QUBE}")
+def test_the_arms_reversals_let_four_real_chirps_predict_another_better():
+    chirps = sorted(glob.glob(os.path.join(REAL_QUBE, "qs2_chirp_*.csv")))
+    training = [chirps[i] for i in (0, 1, 5, 6)]  # neg_0, neg_1, pos_0, pos_1
+    m = recordings.read(chirps[7])                 # pos_2
+
+    def error(found):
+        latency = found.actuation["latency_seconds"] / m.sample_time
+        return prediction.predict(
+            m, found.parameters, np.arange(len(m)), latency, (0.0, found.offsets["pendulum_encoder_offset"]),
+            voltage_deadzone=found.actuation["voltage_deadzone"],
+            cable_rest_angle=-found.offsets["arm_encoder_offset"], cable_slack=found.offsets["cable_slack"],
+        ).rms_at_horizon
+
+    sliding = calibration.calibrate_recordings(training)
+    reversing = calibration.calibrate_recordings(training, reversals=True)
+    assert -reversing.offsets["arm_encoder_offset"] == pytest.approx(-0.43, abs=0.1)  # where the arm creeps
+    assert error(reversing) < 0.85 * error(sliding)
+
+
 def test_the_suites_recordings_export_to_the_format(tmp_path):
     from qube_suite import suite
     from qube_suite.recording import Recorder
