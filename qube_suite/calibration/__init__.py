@@ -106,10 +106,11 @@ def calibrate_recordings(paths: Sequence[str | os.PathLike], device: str = "qube
     excitation experiment: resistance and back-EMF separately, the rotor's inertia fixed); several
     are fitted together from their encoders and voltages (`fit.fit_voltage`), current or not.
     `free`: the unknowns of the voltage-only fit (None: all); `reversals`: it also takes the windows
-    where the arm reverses without sticking (`fit.signals`): on eight or more of a real Qube's chirps
-    it predicts held-out chirps better, on two or four it does not (docs/calibration.md, "A real
-    Qube"), so it is off by default. Raises ValueError (one line, naming the file) for a recording
-    that cannot calibrate; nothing is written here.
+    where the arm reverses without sticking (`fit.signals`): on four or more of a real Qube's chirps
+    it predicts held-out chirps better, on two it loses the cable, and it predicts recordings of
+    another session worse (docs/calibration.md, "A real Qube"), so it is off by default. Raises
+    ValueError (one line, naming the file) for a recording that cannot calibrate; nothing is
+    written here.
     """
     if not paths:
         raise ValueError("no recordings given")
