@@ -15,18 +15,25 @@ estimated on the 0.1 s before each start, recorded voltages replayed; both angle
   its own prediction moves when the start's pendulum angle moves one encoder count (chaos: upright,
   the replayed voltages do not stabilise the model, and an error grows about 10-fold per 0.2 s);
 * what each part of the model buys: calibrations on eight chirps (held out: neg_4, pos_4) with
-  the unknowns added one group at a time, each row also predicting every swing-up 0.1 s ahead;
+  the unknowns added one group at a time, each row also predicting every swing-up 0.1 s ahead, and
+  a last row whose fit also takes the windows where the arm reverses without sticking;
 * the parameters with their 95 % intervals against nominal, and the spread (min, max) of the
   ten single-chirp calibrations: honest intervals contain most of that spread;
 * a figure of recorded against predicted angles (`--figure`), and the wall time.
 
     python benchmarks/real_qube.py [--data DIR] [--out FILE.json] [--figure FILE.png] [--smoothed-start]
     python benchmarks/real_qube.py --save qube_suite/devices/qube/real_qube_servo2.yaml   # only that
+    python benchmarks/real_qube.py --frequency-response   # only that (or --residual-structure)
 
 `--residual-structure` instead fits all ten chirps (latency 1.5 samples) and reports how much of
 the arm's momentum-balance residual candidate terms explain (least squares on their weak-form
 projections): a hardening cable (theta^3), Stribeck friction, a per-recording torque offset and
-a per-recording cable stiffness. `--smoothed-start` starts each prediction from the zero-phase
+a per-recording cable stiffness. `--frequency-response` instead calibrates on all ten chirps and
+compares the arm's response to the chirp at each frequency (the recorded arm angle's component at
+the voltage's frequency, relative to the voltage's, in windows of two periods) with the calibrated
+model's, simulated over the whole chirp from its first 0.1 s: a compliant coupling between the
+motor and the arm or backlash in it would bend the ratio at the chirp's high frequencies.
+`--smoothed-start` starts each prediction from the zero-phase
 filter's state at its start (the metric of the data's README, which peeks 5 samples ahead)
 instead of a state fitted to the 0.1 s before it. `--save` writes the calibration on all ten
 chirps, as shipped in the package (`qube_suite.devices.qube.parameters.REAL_QUBE_SERVO2`), and stops.
@@ -60,6 +67,9 @@ ABLATION = (
     ("+ fractional-sample latency", ()),
     ("+ slack band of the cable", ("cable_slack",)),
 )
+REVERSALS_ROW = "+ the arm's windows with reversals (not sticking) in the fit"
+"""The ablation's last row: every unknown, the fit also taking the windows where the arm reverses without
+sticking (`calibration.calibrate_recordings(reversals=True)`), which the shipped calibration does not."""
 BALANCING_ANGLE = 0.4
 """A swing-up's start counts as balancing where the pendulum is within this of upright (rad)."""
 ENCODER_COUNT = 2.0 * np.pi / 2048
@@ -148,11 +158,15 @@ def main() -> None:
     parser.add_argument("--save", default=None, help="write the calibration on all chirps here and stop")
     parser.add_argument("--smoothed-start", action="store_true")
     parser.add_argument("--residual-structure", action="store_true")
+    parser.add_argument("--frequency-response", action="store_true")
     args = parser.parse_args()
     global SMOOTHED_START
     SMOOTHED_START = args.smoothed_start
     if args.residual_structure:
         residual_structure(sorted(glob.glob(os.path.join(args.data, "qs2_chirp_*.csv"))))
+        return
+    if args.frequency_response:
+        frequency_response(sorted(glob.glob(os.path.join(args.data, "qs2_chirp_*.csv"))))
         return
     if args.save:
         save(sorted(glob.glob(os.path.join(args.data, "qs2_chirp_*.csv"))), args.save)
@@ -188,9 +202,9 @@ def main() -> None:
     test = [read[p] for p in chirps if p.endswith("_4.csv")]
     free: tuple[str, ...] = ()
     results["ablation"] = []
-    for index, (name, added) in enumerate(ABLATION):
+    for index, (name, added) in enumerate((*ABLATION, (REVERSALS_ROW, ()))):
         free = free + added
-        c = calibration.calibrate_recordings(train, free=free)
+        c = calibration.calibrate_recordings(train, free=free, reversals=name == REVERSALS_ROW)
         if index < FRACTIONAL_LATENCY_ROW:  # until then, the latency rounded to whole samples
             c.actuation["latency_seconds"] = round(c.latency_steps) * read[train[0]].sample_time
         row = {"model": name, "chirps": table(c, test), "latency_ms": 1e3 * c.actuation["latency_seconds"],
@@ -265,6 +279,57 @@ def residual_structure(chirps: list[str]) -> None:
                            ("a torque offset and a cable stiffness per recording",
                             per_recording("one") + per_recording("theta"))):
         print(f"  {label}: {100 * explained(columns):.0f} %")
+
+
+FREQUENCY_WINDOWS = np.arange(0.5, 9.01, 0.5)
+"""Centres (s into each chirp) of the windows `frequency_response` compares, 9.6 down to 1.4 Hz."""
+
+
+def frequency_response(chirps: list[str]) -> None:
+    """Print the arm's response to each chirp's voltage (rad/V, phase in degrees) against the model's
+    calibrated on all `chirps`, averaged over them, at the frequencies of `FREQUENCY_WINDOWS`."""
+    c = calibration.calibrate_recordings(chirps)
+    recorded, simulated, frequencies = [], [], []
+    for path in chirps:
+        m = recordings.read(path)
+        whole = predictions(c, m, m.time[-1] - 0.35)  # one start, 0.2 s in
+        start = whole.starts[0]
+        span = slice(start, start + len(whole.time))
+        local = chirp_frequency(m.time, m.voltage)
+        frequencies.append(local(FREQUENCY_WINDOWS))
+        recorded.append(response(m.time[span], m.theta[span], m.voltage[span], frequencies[-1]))
+        simulated.append(response(m.time[span], whole.predicted[0, :, 0], m.voltage[span], frequencies[-1]))
+    real, model = np.mean(recorded, axis=0), np.mean(simulated, axis=0)
+    print("frequency (Hz) | recorded gain (rad/V), phase (deg) | model's | recorded / model")
+
+    def gain_phase(z: complex, digits: int) -> str:
+        return f"{abs(z):.{digits}f} {np.degrees(np.angle(z)):+7.1f}"
+
+    for f, a, b in zip(np.mean(frequencies, axis=0), real, model, strict=True):
+        print(f"{f:5.2f} | {gain_phase(a, 4)} | {gain_phase(b, 4)} | {gain_phase(a / b, 3)}")
+
+
+def chirp_frequency(time: np.ndarray, voltage: np.ndarray):
+    """The chirp's frequency (Hz) as a function of time (s): a cubic fitted to the half-periods between
+    its voltage's zero crossings (each quantised to a sample)."""
+    crossings = time[1:][np.diff(np.sign(voltage)) != 0]
+    middles, frequency = 0.5 * (crossings[1:] + crossings[:-1]), 0.5 / np.diff(crossings)
+    return np.polynomial.Polynomial.fit(middles, frequency, 3)
+
+
+def response(time: np.ndarray, angle: np.ndarray, voltage: np.ndarray, frequencies: np.ndarray) -> np.ndarray:
+    """The complex ratio of `angle`'s (rad) to `voltage`'s (V) component at each of `frequencies` (Hz),
+    over two periods around each of `FREQUENCY_WINDOWS` (s of `time`; a drift quadratic in time removed)."""
+    out = []
+    for centre, f in zip(FREQUENCY_WINDOWS, frequencies, strict=True):
+        inside = np.abs(time - centre) < 1.0 / f
+        t = time[inside] - centre
+        phase = 2.0 * np.pi * f * t
+        basis = np.column_stack([np.cos(phase), np.sin(phase), np.ones_like(t), t, t**2])
+        a = np.linalg.lstsq(basis, angle[inside], rcond=None)[0]
+        v = np.linalg.lstsq(basis, voltage[inside], rcond=None)[0]
+        out.append(complex(a[0], -a[1]) / complex(v[0], -v[1]))
+    return np.array(out)
 
 
 def save(chirps: list[str], path: str) -> None:

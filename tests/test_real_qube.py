@@ -9,6 +9,7 @@ import pytest
 
 from qube_suite import calibration
 from qube_suite.calibration import fit, prediction, recordings
+from qube_suite.calibration.measurements import Measurements
 from qube_suite.cli import main
 from qube_suite.devices.qube import simulation as qube
 
@@ -129,6 +130,24 @@ def test_the_voltage_only_fit_recovers_a_known_simulated_qube(tmp_path):
     assert -found.offsets["arm_encoder_offset"] == pytest.approx(cable["cable_rest_angle"], abs=0.05)
 
 
+def test_the_voltage_only_fit_can_take_the_arms_reversals_but_never_a_stick():
+    h = 0.004
+    t = np.arange(0.0, 4.0, h)
+    theta = -0.3 * t + 0.015 * np.sin(2 * np.pi * 10.0 * t)  # creeping while reversing 20 times a second
+    still = (t > 3.0) & (t < 3.1)
+    theta[still] = theta[np.argmax(still)]                    # then stuck for 0.1 s
+    theta[t >= 3.1] += theta[np.argmax(still)] - theta[np.argmax(t >= 3.1)]
+    m = Measurements(time=t, theta=theta, alpha=np.pi + 0 * t, voltage=0 * t, current=0 * t, sample_time=h,
+                     metadata={})
+    sliding, taken = fit.voltage_signals(m), fit.voltage_signals(m, reversals=True)
+    starts_time = taken.starts * h
+    far = (starts_time + fit.INTERVAL * h < 2.9) | (starts_time > 3.2)
+    overlapping = (starts_time + fit.INTERVAL * h > 3.0) & (starts_time < 3.1)
+    assert not sliding.arm_sliding.any()  # by default: sliding throughout
+    assert taken.arm_sliding[far].all()
+    assert not taken.arm_sliding[overlapping].any()
+
+
 @pytest.mark.skipif(not os.path.isdir(REAL_QUBE),
                     reason=f"recordings of a real Qube not found at {REAL_QUBE}")
 def test_calibrating_on_real_chirps_predicts_another_far_better_than_nominal(tmp_path):
@@ -145,6 +164,27 @@ def test_calibrating_on_real_chirps_predicts_another_far_better_than_nominal(tmp
         voltage_deadzone=found.actuation["voltage_deadzone"],
         cable_rest_angle=-found.offsets["arm_encoder_offset"]).rms_at_horizon
     assert calibrated < 0.5 * nominal
+
+
+@pytest.mark.skipif(not os.path.isdir(REAL_QUBE),
+                    reason=f"recordings of a real Qube not found at {REAL_QUBE}")
+def test_the_arms_reversals_let_four_real_chirps_predict_another_better():
+    chirps = sorted(glob.glob(os.path.join(REAL_QUBE, "qs2_chirp_*.csv")))
+    training = [chirps[i] for i in (0, 1, 5, 6)]  # neg_0, neg_1, pos_0, pos_1
+    m = recordings.read(chirps[7])                 # pos_2
+
+    def error(found):
+        latency = found.actuation["latency_seconds"] / m.sample_time
+        return prediction.predict(
+            m, found.parameters, np.arange(len(m)), latency, (0.0, found.offsets["pendulum_encoder_offset"]),
+            voltage_deadzone=found.actuation["voltage_deadzone"],
+            cable_rest_angle=-found.offsets["arm_encoder_offset"], cable_slack=found.offsets["cable_slack"],
+        ).rms_at_horizon
+
+    sliding = calibration.calibrate_recordings(training)
+    reversing = calibration.calibrate_recordings(training, reversals=True)
+    assert -reversing.offsets["arm_encoder_offset"] == pytest.approx(-0.43, abs=0.1)  # where the arm creeps
+    assert error(reversing) < 0.85 * error(sliding)
 
 
 def test_the_suites_recordings_export_to_the_format(tmp_path):

@@ -98,27 +98,31 @@ VOLTAGE_ONLY_PARAMETERS = ("motor_torque_constant", "rotor_inertia", "pendulum_l
 
 def calibrate_recordings(paths: Sequence[str | os.PathLike], device: str = "qube_servo2",
                          conventions: recordings.Conventions | None = None,
-                         free: tuple[str, ...] | None = None) -> Calibration:
+                         free: tuple[str, ...] | None = None, reversals: bool = False) -> Calibration:
     """Calibrate from one or several recordings of the same Qube in the CSV or `.npz` format of
     `recordings` (any logger, any constant sample period), all fitted at once.
 
     One recording with a `motor_current` column is fitted with its current (`fit.fit`, as the
     excitation experiment: resistance and back-EMF separately, the rotor's inertia fixed); several
     are fitted together from their encoders and voltages (`fit.fit_voltage`), current or not.
-    `free`: the unknowns of the voltage-only fit (None: all). Raises ValueError (one line, naming
-    the file) for a recording that cannot calibrate; nothing is written here.
+    `free`: the unknowns of the voltage-only fit (None: all); `reversals`: it also takes the windows
+    where the arm reverses without sticking (`fit.signals`): on four or more of a real Qube's chirps
+    it predicts held-out chirps better, on two it loses the cable, and it predicts recordings of
+    another session worse (docs/calibration.md, "A real Qube"), so it is off by default. Raises
+    ValueError (one line, naming the file) for a recording that cannot calibrate; nothing is
+    written here.
     """
     if not paths:
         raise ValueError("no recordings given")
     read = [recordings.read(path, device, conventions) for path in paths]
-    if len(read) == 1 and read[0].current is not None and free is None:
+    if len(read) == 1 and read[0].current is not None and free is None and not reversals:
         return _calibrate_with_current(read[0])
     periods = sorted({round(m.sample_time, 6) for m in read})
     if len(periods) > 1:  # the latency is fitted in samples of one period
         listed = ", ".join(f"{period:g} s" for period in periods)
         raise ValueError(f"recordings of different sample periods ({listed}) cannot be fitted together; "
                          "calibrate from those of one period")
-    result = fit.fit_voltage(read, free=free)
+    result = fit.fit_voltage(read, free=free, reversals=reversals)
     found = intervals.voltage_only_intervals(result)
     values = result.values
     motor = dict(BOARD_MOTORS[recordings.DEVICES[device]])

@@ -24,7 +24,10 @@ double derivative or momenta at window ends did (pendulum mass 4 to 10 % low on 
 default substitute, against 1 % now). The motor torque is kt times the current read
 at the end of each sample interval. Coulomb friction is exact: a window enters a
 joint's equation only if the joint slides throughout (speed above `SLIDING_SPEED`),
-so the fit never models sticking.
+so the fit never models sticking. The voltage-only fit (`fit_voltage`) can also take the
+arm's windows in which it reverses without sticking (`REVERSAL_SAMPLES`, `reversals=True`): a
+real Qube's chirps reverse the arm 20 times a second at their start, and only there does the
+arm creep across the cable's pull near the encoder's zero.
 
 The residuals, weighted by each equation's own spread, are minimised over the
 unknowns scaled near 1 (`identifiability.FITTED`, `OFFSETS`) by
@@ -47,7 +50,7 @@ from collections.abc import Callable
 
 import mujoco.minimize
 import numpy as np
-from scipy.ndimage import minimum_filter1d
+from scipy.ndimage import label, maximum_filter1d, minimum_filter1d
 
 from qube_suite.calibration.identifiability import FITTED, OFFSETS, Fitted
 from qube_suite.calibration.measurements import PENDULUM_ENCODERS, Encoders, Measurements
@@ -55,6 +58,10 @@ from qube_suite.devices.qube import parameters
 
 SLIDING_SPEED = 0.05
 """A joint counts as sliding where its speed stays above this (rad/s) across the smoothing window."""
+REVERSAL_SAMPLES = 3
+"""Longest run of samples below `SLIDING_SPEED` of a reversal that the arm is driven through rather than
+stuck in (12 ms at 250 Hz; a 1.5 V, 10 Hz chirp passes in one sample): where `signals` takes reversals,
+a window of the arm's equation may hold such runs, but no longer one."""
 MAX_LATENCY = 3
 """Largest latency (samples) the fit considers."""
 
@@ -86,7 +93,8 @@ class Signals:
     starts: np.ndarray
     """First samples of the momentum-balance intervals the fit may use."""
     arm_sliding: np.ndarray
-    """For each interval: whether the arm slides throughout (its friction torque is then known)."""
+    """For each interval: whether the arm slides throughout, or where reversals are taken never sticks
+    (its friction torque is then known)."""
     pendulum_sliding: np.ndarray | None
     """For each interval: whether the pendulum slides throughout (None without a pendulum)."""
     block: np.ndarray
@@ -94,9 +102,11 @@ class Signals:
     sample_time: float
 
 
-def signals(measurements: Measurements, latency: int, samples: np.ndarray | None = None) -> Signals:
+def signals(measurements: Measurements, latency: int, samples: np.ndarray | None = None,
+            reversals: bool = False) -> Signals:
     """The fit's inputs from `measurements` for `latency` (samples), using only the sample indices
-    `samples` (None: all; the filter's edges and the first samples are never used)."""
+    `samples` (None: all; the filter's edges and the first samples are never used). `reversals`: the
+    arm's equation also takes the windows where it reverses without sticking (`REVERSAL_SAMPLES`)."""
     theta, dtheta = measurements.derivatives(measurements.theta)
     pendulum = measurements.alpha
     alpha, dalpha = (None, None) if pendulum is None else measurements.derivatives(pendulum)
@@ -120,9 +130,15 @@ def signals(measurements: Measurements, latency: int, samples: np.ndarray | None
                                 origin=-(INTERVAL // 2)) > SLIDING_SPEED
         return slow[starts]
 
+    def never_sticking(speed: np.ndarray) -> np.ndarray:
+        runs, _ = label(np.abs(speed) <= SLIDING_SPEED)
+        stuck = (np.bincount(runs) > REVERSAL_SAMPLES)[runs] & (runs > 0)
+        return maximum_filter1d(stuck, INTERVAL + 1 + 2 * edge, origin=-(INTERVAL // 2))[starts] == 0
+
     return Signals(theta=theta, alpha=alpha, dtheta=dtheta, dalpha=dalpha, current=current,
                    current_after=np.append(current[1:], current[-1]), voltage_before=voltage_before,
-                   rows=np.flatnonzero(usable), starts=starts, arm_sliding=sliding(dtheta),
+                   rows=np.flatnonzero(usable), starts=starts,
+                   arm_sliding=never_sticking(dtheta) if reversals else sliding(dtheta),
                    pendulum_sliding=None if dalpha is None else sliding(dalpha),
                    block=(measurements.time / BLOCK_SECONDS).astype(int),
                    sample_time=measurements.sample_time)
@@ -406,12 +422,18 @@ SLACK_STEP = 0.2
 SLACK_GRID = tuple(SLACK_STEP * k for k in range(5))
 """Half-widths of the cable's slack band (rad) the voltage-only fit tries (then half a step either
 side of the best): its cost has local minima in the slack, which least squares would stop in."""
+REVERSALS_SLACK_STEP = 0.1
+"""The slack grid's step (rad) where the fit takes the arm's reversals: they show the cable near its rest,
+where the cost's two minima on a real Qube's chirps (0.1 and 0.5 rad) are closer than `SLACK_STEP`
+resolves (on four chirps the coarse grid stopped in the worse one)."""
 
 
-def voltage_signals(measurements: Measurements, samples: np.ndarray | None = None) -> Signals:
+def voltage_signals(measurements: Measurements, samples: np.ndarray | None = None,
+                    reversals: bool = False) -> Signals:
     """The voltage-only fit's inputs from `measurements` (the latency enters later, in
-    `voltage_equations`); `samples` as for `signals`."""
-    return signals(dataclasses.replace(measurements, current=np.zeros(len(measurements))), 0, samples)
+    `voltage_equations`); `samples` and `reversals` as for `signals`."""
+    return signals(dataclasses.replace(measurements, current=np.zeros(len(measurements))), 0, samples,
+                   reversals)
 
 
 def delayed_voltage(voltage: np.ndarray, latency: float) -> np.ndarray:
@@ -507,7 +529,7 @@ def _voltage_residual(x, signals_, voltages, latency, weights) -> np.ndarray:
 
 def fit_voltage(recordings: list[Measurements], samples: list[np.ndarray | None] | None = None,
                 latency: float | None = None, free: tuple[str, ...] | None = None,
-                slack: float | None = None) -> VoltageFitResult:
+                slack: float | None = None, reversals: bool = False) -> VoltageFitResult:
     """Fit the voltage-only unknowns to several `recordings` at once, each on its sample indices
     `samples` (None: all).
 
@@ -515,9 +537,12 @@ def fit_voltage(recordings: list[Measurements], samples: list[np.ndarray | None]
     `free`: the unknowns fitted (None: all of `VOLTAGE_ONLY`); the others stay at their nominal value
     (0 for the friction-like ones and the offsets), which is how the benchmark measures what each
     part of the model buys. `slack`: the cable's slack (rad; None: searched on `SLACK_GRID` if free).
+    `reversals`: the arm's equation also takes the windows where it reverses without sticking
+    (`signals`), and the slack's grid is finer (`REVERSALS_SLACK_STEP`).
     """
     samples = samples or [None] * len(recordings)
-    signals_ = tuple(voltage_signals(m, chosen) for m, chosen in zip(recordings, samples, strict=True))
+    signals_ = tuple(voltage_signals(m, chosen, reversals)
+                     for m, chosen in zip(recordings, samples, strict=True))
     voltages = tuple(m.voltage for m in recordings)
     free = VOLTAGE_NAMES if free is None else free
     unknown = set(free) - set(VOLTAGE_NAMES)
@@ -560,10 +585,11 @@ def fit_voltage(recordings: list[Measurements], samples: list[np.ndarray | None]
         best = solve(best[3], slack, best[0]) + (best[3],)
     elif "cable_slack" in free:  # a grid (local minima), then half its step either side of the best
         lat, linear = best[3], best[0]
-        for slack in SLACK_GRID[1:]:
+        step = REVERSALS_SLACK_STEP if reversals else SLACK_STEP
+        for slack in (step * k for k in range(1, round(SLACK_GRID[-1] / step) + 1)):
             best = min(best, solve(lat, slack, linear) + (lat,), key=lambda f: f[2])
         chosen = best[0][slack_index] * VOLTAGE_SCALES[slack_index]
-        for slack in (chosen - 0.5 * SLACK_STEP, chosen + 0.5 * SLACK_STEP):
+        for slack in (chosen - 0.5 * step, chosen + 0.5 * step):
             if slack > 0.0:
                 best = min(best, solve(lat, slack, linear) + (lat,), key=lambda f: f[2])
     x, weights, _, lat = best
