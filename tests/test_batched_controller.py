@@ -14,12 +14,28 @@ from qube_suite.wrappers.vector_env import QubeVectorEnv
 WORLDS = 6
 
 
-def simulate(latency_steps, steps=1500, seed=0):
-    """Per-world controllers and the batch, side by side, on simulated worlds; the worst voltage
-    difference (V) and what the batch went through."""
-    design = dict(voltage_limit=3.0, latency_steps=latency_steps)
-    controllers = [baselines.make("swingup", **design) for _ in range(WORLDS)]
-    batch = BatchedSwingup(baselines.make("swingup", **design), WORLDS)
+DESIGNS = [{"latency_steps": 0},
+           {"latency_steps": 2, "parameters": parameters.REAL_QUBE_SERVO2},
+           {"latency_steps": 1, "parameters": {"pendulum_mass": 0.03, "motor_resistance": 6.5}},
+           {"latency_steps": 3, "parameters": {"rotor_inertia": 2e-5, "arm_damping": 1e-3}}]
+"""Designs of the teacher built for each world's plant (`imitation.Teachers(knows_plant=True)`)."""
+
+
+def simulate(design, redesign=False, steps=1500, seed=0):
+    """Per-world controllers and the batch, side by side, on simulated worlds, world w's controller in
+    its episode e made with `design(w, e)` (keyword arguments of `baselines.make`); at a new episode a
+    world's controller is reset, or with `redesign` made anew and given to the batch. The worst voltage
+    difference (V), what the batch went through and how many designs it took up after the first."""
+    def make(world, episode):
+        return baselines.make("swingup", voltage_limit=3.0, **design(world, episode))
+
+    episodes = np.zeros(WORLDS, int)
+    controllers = [make(world, 0) for world in range(WORLDS)]
+    batch = BatchedSwingup(make(0, 0), WORLDS)
+    if redesign:
+        for world in range(WORLDS):
+            batch.redesign(world, make(world, 0))
+        batch.reset(np.ones(WORLDS, bool))
     env = QubeVectorEnv("swingup", WORLDS, autoreset_mode="SameStep", randomization="wide")
     observations, _ = env.reset(seed=seed)
     random = np.random.default_rng(seed)
@@ -41,59 +57,28 @@ def simulate(latency_steps, steps=1500, seed=0):
         observations, _, terminated, truncated, _ = env.step(sent[:, None].astype(np.float32))
         restart = terminated | truncated | (random.random(WORLDS) < 0.002)
         for world in np.flatnonzero(restart):
-            controllers[world].reset()
+            episodes[world] += 1
+            if redesign:
+                controllers[world] = make(world, episodes[world])
+                batch.redesign(world, make(world, episodes[world]))
+            else:
+                controllers[world].reset()
         batch.reset(restart)
     env.close()
-    return worst, balanced, adapted
+    return worst, balanced, adapted, int(episodes.sum()) if redesign else 0
 
 
 @pytest.mark.parametrize("latency_steps", [0, 1])
 def test_the_batch_gives_each_world_the_per_world_controllers_voltage(latency_steps):
-    worst, balanced, adapted = simulate(latency_steps)
+    worst, balanced, adapted, _ = simulate(lambda world, episode: {"latency_steps": latency_steps})
     assert worst <= 1e-12
     assert balanced.any()  # the LQR caught
     assert adapted.any()  # an uncaught swing changed the set energy
 
 
-DESIGNS = [{"latency_steps": 0},
-           {"latency_steps": 2, "parameters": parameters.REAL_QUBE_SERVO2},
-           {"latency_steps": 1, "parameters": {"pendulum_mass": 0.03, "motor_resistance": 6.5}},
-           {"latency_steps": 3, "parameters": {"rotor_inertia": 2e-5, "arm_damping": 1e-3}}]
-"""Designs of the teacher built for each world's plant (`imitation.Teachers(knows_plant=True)`)."""
-
-
 def test_each_world_runs_its_own_design_and_takes_another_at_a_new_episode():
-    def make(index):
-        return baselines.make("swingup", voltage_limit=3.0, **DESIGNS[index % len(DESIGNS)])
-
-    chosen = np.arange(WORLDS)
-    controllers = [make(index) for index in chosen]
-    batch = BatchedSwingup(make(0), WORLDS)
-    for world in range(WORLDS):
-        batch.redesign(world, make(chosen[world]))
-    batch.reset(np.ones(WORLDS, bool))
-    env = QubeVectorEnv("swingup", WORLDS, autoreset_mode="SameStep", randomization="wide")
-    observations, _ = env.reset(seed=3)
-    random = np.random.default_rng(3)
-    worst, balanced, redesigned = 0.0, np.zeros(WORLDS, bool), 0
-    for _ in range(1500):
-        states = observations[:, :4].astype(np.float64)
-        expected = np.array([controller(row) for controller, row in zip(controllers, states, strict=True)])
-        volts = batch(states)
-        worst = max(worst, float(np.abs(volts - expected).max()))
-        balanced |= np.array([controller.balancing for controller in controllers])
-        for controller, value in zip(controllers, expected, strict=True):
-            controller.sent(float(value))
-        batch.sent(expected)
-        observations, _, terminated, truncated, _ = env.step(expected[:, None].astype(np.float32))
-        restart = terminated | truncated | (random.random(WORLDS) < 0.004)
-        for world in np.flatnonzero(restart):
-            chosen[world] += 1
-            controllers[world] = make(chosen[world])
-            batch.redesign(world, make(chosen[world]))
-            redesigned += 1
-        batch.reset(restart)
-    env.close()
+    worst, balanced, _, redesigned = simulate(
+        lambda world, episode: DESIGNS[(world + episode) % len(DESIGNS)], redesign=True, seed=3)
     assert worst <= 1e-12
     assert balanced.any() and redesigned >= 5
 
