@@ -11,6 +11,7 @@ from qube_suite import cli, training
 from qube_suite.calibration.calibration_file import Calibration
 from qube_suite.calibration.calibration_file import load as load_calibration
 from qube_suite.devices.qube import parameters
+from qube_suite.hardware.plant import named_plant
 from qube_suite.policies import load_policy
 from qube_suite.randomization import load as load_randomization
 from qube_suite.randomization.presets import PRESETS
@@ -71,7 +72,9 @@ def test_train_with_a_calibration_leaves_the_choice_of_init_to_train(monkeypatch
 @pytest.mark.slow
 @needs_rl
 def test_adapt_calibrates_fine_tunes_and_evaluates_on_the_substitute(tmp_path, capsys):
-    plant = {"pendulum_mass": 0.024 * 1.2, "arm_friction": 2e-3}  # a Qube nobody described
+    # a Qube nobody described, about the estimated plant: the one-minute experiment does not identify the
+    # real Qube's plant (docs/calibration.md), and this test is of the flow
+    plant = {**named_plant("estimated"), "pendulum_mass": 0.024 * 1.2, "arm_friction": 2e-3}
     report = calibrated.adapt("swingup", "qube_hardware", {"plant": plant}, out=tmp_path, steps=512,
                               seconds=20.0, episodes=1, progress=False, num_envs=2, evaluations=1,
                               eval_episodes=1, checkpoints=1, hyperparameters={"n_steps": 256})

@@ -175,7 +175,9 @@ def test_a_wrapper_exception_then_a_pause_is_caught_by_the_watchdog_and_the_next
 
 @pytest.mark.slow
 def test_a_time_limit_truncation_then_a_pause_then_reset_works(wall_clock_board):
-    env = gymnasium.make("QubeSuite/BalanceHardware-v0", max_episode_steps=20,
+    # the swing-up's reset (arm back, pendulum at rest hanging): the balance's, which must swing up and
+    # catch on the wall clock, missed in 1 of 3 tries with the other core busy on the real Qube's plant
+    env = gymnasium.make("QubeSuite/SwingupHardware-v0", max_episode_steps=20,
                          domain_kwargs={"board": "qube_servo2_usb"})
     try:
         env.reset(seed=0)

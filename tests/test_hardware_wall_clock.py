@@ -112,7 +112,7 @@ def test_watchdog_expires_on_the_wall_clock_and_applies_its_expiration_states(wa
     card.write_digital(np.array([0], U32), 1, np.ones(1, np.int8))
     card.write_analog(np.array([0], U32), 1, np.array([2.0]))
     card.watchdog_start(0.05)
-    assert wall_clock_board.state()["applied_voltage"] == 2.0
+    assert wall_clock_board.state()["written_voltage"] == 2.0      # applied after the amplifier's latency
     time.sleep(0.15)                                                               # nobody calls the board
     state = wall_clock_board.state()
     assert state["applied_voltage"] == 0.0 and not state["amplifier_enabled"] and state["watchdog_expired"]

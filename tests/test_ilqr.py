@@ -135,16 +135,20 @@ def test_cost_may_be_given_as_the_weights_to_change():
 @pytest.mark.slow
 @pytest.mark.parametrize("domain", ["qube", "qube_hardware"])
 def test_ilqr_swings_up_and_balances_on_both_domains(domain):
-    result = evaluate("ilqr", domain=domain, task="swingup", episodes=2, seed=0)
+    # planned with the nominal model: on the substitute's estimated plant (on the real Qube's it swings up
+    # only given its calibration: docs/hardware.md)
+    kwargs = {"domain_kwargs": {"plant": "estimated"}} if domain == "qube_hardware" else {}
+    result = evaluate("ilqr", domain=domain, task="swingup", episodes=2, seed=0, **kwargs)
     assert result.success_rate == 1.0 and result.mean_return > 1750
-    balance = evaluate("ilqr", domain=domain, task="balance", episodes=2, seed=0)
+    balance = evaluate("ilqr", domain=domain, task="balance", episodes=2, seed=0, **kwargs)
     assert balance.success_rate == 1.0 and balance.mean_return > 2000
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("domain", ["qube", "qube_hardware"])
-def test_cli_evaluates_ilqr_on_the_swingup(domain, capsys):
-    assert cli.main(["eval", "--controller", "ilqr", "--task", "swingup", "--domain", domain,
+@pytest.mark.parametrize(("domain", "task"), [("qube", "swingup"), ("qube_hardware", "balance")])
+def test_cli_evaluates_ilqr(domain, task, capsys):
+    # on the substitute the balance: its default plant, the real Qube's, needs a calibration to swing up
+    assert cli.main(["eval", "--controller", "ilqr", "--task", task, "--domain", domain,
                      "--episodes", "1", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["success_rate"] == 1.0 and summary["policy"] == "ilqr"
@@ -242,7 +246,8 @@ def test_ilqr_keeps_the_arm_in_range_on_jumping_targets_on_the_substitute():
     """On the default "jump" schedule (seeds 0 to 4 in turn) the arm stays well inside the task's
     90 degrees; the fifth episode used to end at -92 degrees and 12.7 rad/s, too fast for the reset
     to brake before the board's 120 degree safety stop."""
-    env = suite.load("qube_hardware", "swingup_follow", task_kwargs={"random": 0})
+    env = suite.load("qube_hardware", "swingup_follow", task_kwargs={"random": 0},
+                     domain_kwargs={"plant": "estimated"})  # planned for the nominal model
     controller = baselines.for_environment("ilqr", env)
     largest = 0.0
     try:

@@ -200,7 +200,8 @@ class _Server:
         hil = board.hil
         open_ = hil.is_valid()
         return {
-            "applied_voltage": hil.applied_voltage, "amplifier_enabled": hil.amplifier_enabled,
+            "applied_voltage": hil.applied_voltage, "written_voltage": hil.written_voltage,
+            "amplifier_enabled": hil.amplifier_enabled,
             "watchdog_expired": hil.watchdog_is_expired() if open_ else None,
             "held": board.owner is not None, "closed_cleanly": board.closed_cleanly,
             "card_options": board.options, "true_state": hil.true_state().tolist(), "time": hil.time,
