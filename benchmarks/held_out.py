@@ -56,6 +56,7 @@ ABSOLUTE = {"arm_friction": 4e-3, "pendulum_friction": 2e-4, "cable_stiffness": 
 EPISODE_SPREAD = 0.1
 """Relative variation of each episode's friction and cable stiffness around its plant's values."""
 
+
 def inside_sim2real(plant: dict[str, float]) -> bool:
     """Whether every value of `plant` lies within the `sim2real` preset's range for it."""
     ranges = PRESETS["sim2real"]["parameters"]

@@ -34,7 +34,8 @@ lasting `stall_time` disables the amplifier until its enable line is toggled).
 A disabled amplifier leaves the motor open-circuit: no current, no torque.
 
 What a real Qube adds (`plant.REAL_EFFECT_PARAMETERS`, all off in the estimated plant; the
-real Qube's plant `real_qube_servo2`, a Qube-Servo 2's default (`plant.DEFAULT_PLANTS`), has them): the amplifier's `latency` (a written voltage acts that
+real Qube's plant `real_qube_servo2`, a Qube-Servo 2's default (`plant.DEFAULT_PLANTS`), has
+them): the amplifier's `latency` (a written voltage acts that
 long after its write, to the substep; the amplifier's enable acts at once, so a
 disabled amplifier stops the motor without delay) and `voltage_deadzone`; the
 cable's rest angle and a slack band around it, -kc deadband(theta - rest, slack);

@@ -4,10 +4,11 @@
 - `mild`: manufacturing tolerances of the published parameters; no effects.
 - `moderate`: wider parameter ranges, some friction and cable spring, and sensor and
   actuator effects, for policies meant to be robust in general.
-- `sim2real`: covers what a real Qube, and the hardware substitute's estimated plant
-  (`plant="estimated"`), add to the nominal model: Coulomb friction on both joints and the
-  encoder cable's spring (ranges from 0 to twice that plant's estimates of 1e-3 N m, 5e-5 N m
-  and 1e-3 N m/rad), 2048-count encoders, velocities from Quanser's 50 rad/s filter,
+- `sim2real`: covers what the hardware substitute's estimated plant (`plant="estimated"`)
+  adds to the nominal model (a real Qube's rotor inertia and damping lie outside it: `wide`
+  and `real_qube` hold them): Coulomb friction on both joints and the encoder cable's spring
+  (ranges from 0 to twice that plant's estimates of 1e-3 N m, 5e-5 N m and 1e-3 N m/rad),
+  2048-count encoders, velocities from Quanser's 50 rad/s filter,
   and up to one control step of actuation lag (board latency; the motor
   inductance's electrical time constant, Lm / Rm = 0.14 ms, is far shorter). The
   amplifier's limits are left out: within the tasks' voltage limits (3 V by

@@ -62,6 +62,7 @@ class BatchedSwingup:
         self.model = RigidBodyModel(**{field.name: np.full(worlds, getattr(design.model, field.name))
                                        for field in dataclasses.fields(RigidBodyModel)})
         self._latency = np.zeros(worlds, int)
+        self._world_index = np.arange(worlds)
         self._gains = np.zeros((2, 3, worlds))
         self._lqr_gain, self._cost_matrix = np.zeros((worlds, 4)), np.zeros((worlds, 4, 4))
         for name in _PER_WORLD:
@@ -175,7 +176,7 @@ class BatchedSwingup:
         the last one's where that is later)."""
         newest = len(self._voltages) - 1
         rows = np.minimum(newest - self._latency + k, newest)
-        return self._voltages[rows, np.arange(self.worlds)]
+        return self._voltages[rows, self._world_index]
 
     def _advance(self, state: np.ndarray, volts: np.ndarray) -> np.ndarray:
         return np.array(observer_law.advance(self._accelerations, self._bias, state, volts, self._substep,
